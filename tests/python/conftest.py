@@ -1,0 +1,67 @@
+"""Shared fixtures for the Python interop tests.
+
+The tests drive our binaries as a user would and check them against independent
+implementations installed from PyPI (cyclonedds, rosbags, mcap, pybullet).
+`tests/run_all.sh` builds the binaries and runs pytest inside a private network
+namespace, so DDS traffic never leaves the machine.
+"""
+
+import os
+import pathlib
+import subprocess
+
+import pytest
+
+REPO_ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def _target_dir() -> pathlib.Path:
+    return pathlib.Path(os.environ.get("CARGO_TARGET_DIR", REPO_ROOT / "target"))
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> pathlib.Path:
+    return REPO_ROOT
+
+
+@pytest.fixture(scope="session")
+def causal_arm_bin() -> pathlib.Path:
+    """Path of the `causal-arm` CLI built by `cargo build` (override with CAUSAL_ARM_BIN)."""
+    path = pathlib.Path(os.environ.get("CAUSAL_ARM_BIN", _target_dir() / "debug" / "causal-arm"))
+    if not path.exists():
+        pytest.fail(f"{path} does not exist: run `cargo build --workspace --bins` first")
+    return path
+
+
+@pytest.fixture(scope="session")
+def run_cli(causal_arm_bin):
+    """Run `causal-arm ARGS…` and return the CompletedProcess (text mode, never raises)."""
+
+    def run(*args, input=None, timeout=120, env=None):
+        full_env = dict(os.environ)
+        if env:
+            full_env.update(env)
+        return subprocess.run(
+            [str(causal_arm_bin), *map(str, args)],
+            input=input,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            env=full_env,
+        )
+
+    return run
+
+
+def in_private_netns() -> bool:
+    """True when every network interface is loopback (see tests/netns-run)."""
+    ifaces = os.listdir("/sys/class/net")
+    return ifaces == ["lo"]
+
+
+@pytest.fixture
+def private_netns():
+    """Refuse to start a DDS participant unless we run inside a loopback-only namespace."""
+    if not in_private_netns():
+        pytest.fail("DDS tests must run inside tests/netns-run (found interfaces: "
+                    + ", ".join(os.listdir("/sys/class/net")) + ")")

@@ -53,10 +53,16 @@ def run_cli(causal_arm_bin):
     return run
 
 
+def network_interfaces() -> list:
+    """Interfaces of this process's network namespace (/proc/net/dev is per namespace;
+    /sys/class/net is not, unless sysfs is remounted)."""
+    with open("/proc/net/dev") as f:
+        return [line.split(":")[0].strip() for line in f.readlines()[2:]]
+
+
 def in_private_netns() -> bool:
     """True when every network interface is loopback (see tests/netns-run)."""
-    ifaces = os.listdir("/sys/class/net")
-    return ifaces == ["lo"]
+    return network_interfaces() == ["lo"]
 
 
 @pytest.fixture
@@ -64,4 +70,4 @@ def private_netns():
     """Refuse to start a DDS participant unless we run inside a loopback-only namespace."""
     if not in_private_netns():
         pytest.fail("DDS tests must run inside tests/netns-run (found interfaces: "
-                    + ", ".join(os.listdir("/sys/class/net")) + ")")
+                    + ", ".join(network_interfaces()) + ")")

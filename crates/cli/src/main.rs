@@ -1,11 +1,18 @@
 //! `causal-arm`: one entry point for every tool and node of the project.
 
 mod kinematics_cmd;
+mod topic_cmd;
 
+use causal_arm_node::RosArgs;
 use clap::{Parser, Subcommand};
 
 #[derive(Debug, Parser)]
-#[command(name = "causal-arm", version, about = "Learn low-level causal relations of a simulated iiwa arm by motor babbling (ROS 2)")]
+#[command(
+    name = "causal-arm",
+    version,
+    about = "Learn low-level causal relations of a simulated iiwa arm by motor babbling (ROS 2)",
+    after_help = "ROS arguments go after --ros-args, e.g. `causal-arm topic echo /joint_states --type sensor_msgs/msg/JointState --ros-args -r __node:=my_echo`.\nEnvironment: ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_LOCALHOST_ONLY, RMW_IMPLEMENTATION, RUST_LOG."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -17,13 +24,24 @@ enum Command {
     Fk(kinematics_cmd::FkArgs),
     /// Inverse kinematics (damped least squares): joints that put `ef` at a position.
     Ik(kinematics_cmd::IkArgs),
+    /// Publish or echo any known message type as JSON (like `ros2 topic`).
+    Topic(topic_cmd::TopicArgs),
 }
 
 fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    let all: Vec<String> = std::env::args().collect();
+    let (ros_args, rest) = match RosArgs::split(&all) {
+        Ok(split) => split,
+        Err(err) => {
+            eprintln!("error: {err}");
+            return std::process::ExitCode::FAILURE;
+        }
+    };
+    let cli = Cli::parse_from(rest);
     let result = match &cli.command {
         Command::Fk(args) => kinematics_cmd::run_fk(args),
         Command::Ik(args) => kinematics_cmd::run_ik(args),
+        Command::Topic(args) => topic_cmd::run(args, &ros_args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,0 +1,137 @@
+//! Logging: `tracing` everywhere, printed to stderr and forwarded to `/rosout`.
+//!
+//! Node code only uses `tracing::info!` and friends. [`init`] installs a subscriber that
+//! prints (filtered by `RUST_LOG`, default `info`) and, once a node exists
+//! ([`attach_rosout`]), also publishes every event of level INFO and above as
+//! `rcl_interfaces/Log` on `/rosout`, so `ros2 topic echo /rosout` and rqt_console see it.
+
+use std::cell::Cell;
+use std::fmt::Write as _;
+use std::sync::{Mutex, OnceLock};
+
+use ros2_client::{NodeLoggingHandle, RosoutRaw, builtin_interfaces::Time, ros2::LogLevel};
+use tracing::field::{Field, Visit};
+use tracing::{Event, Level, Subscriber};
+use tracing_subscriber::layer::{Context, SubscriberExt};
+use tracing_subscriber::{EnvFilter, Layer};
+
+static ROSOUT: OnceLock<Mutex<Option<NodeLoggingHandle>>> = OnceLock::new();
+
+thread_local! {
+    static FORWARDING: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Installs the process-wide subscriber. Safe to call more than once (later calls are
+/// no-ops), so tests and binaries can both call it.
+pub fn init() {
+    init_with_level(None);
+}
+
+/// Like [`init`], with a default level from `--ros-args --log-level` when `RUST_LOG` is unset.
+pub fn init_with_level(level: Option<&str>) {
+    let default = level.unwrap_or("info");
+    // DDS internals are chatty at info; keep them at warn unless asked.
+    let filter = EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| EnvFilter::new(format!("{default},rustdds=warn,ros2_client=warn")));
+    let fmt = tracing_subscriber::fmt::layer()
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .with_filter(filter);
+    let subscriber = tracing_subscriber::registry().with(fmt).with(RosoutLayer);
+    if tracing::subscriber::set_global_default(subscriber).is_ok() {
+        // rustdds logs through `log`; bridge only its errors (its warnings are noise
+        // such as per-datagram size notes).
+        let _ = tracing_log::LogTracer::builder()
+            .with_max_level(log::LevelFilter::Error)
+            .init();
+    }
+}
+
+/// Starts forwarding events to `/rosout` through `handle` (the node's rosout writer).
+pub fn attach_rosout(handle: NodeLoggingHandle) {
+    let slot = ROSOUT.get_or_init(|| Mutex::new(None));
+    if let Ok(mut guard) = slot.lock() {
+        *guard = Some(handle);
+    }
+}
+
+/// Stops forwarding (called when the node shuts down, before its writer goes away).
+pub fn detach_rosout() {
+    if let Some(slot) = ROSOUT.get()
+        && let Ok(mut guard) = slot.lock()
+    {
+        *guard = None;
+    }
+}
+
+/// The `tracing` layer that publishes events on `/rosout`.
+struct RosoutLayer;
+
+impl<S: Subscriber> Layer<S> for RosoutLayer {
+    fn on_event(&self, event: &Event<'_>, _ctx: Context<'_, S>) {
+        let meta = event.metadata();
+        if *meta.level() > Level::INFO {
+            return;
+        }
+        // ros2-client echoes rosout into tracing itself; never loop.
+        let target = meta.target();
+        if target.starts_with("ros2_client") || target.starts_with("rustdds") || target == "log" {
+            return;
+        }
+        let Some(slot) = ROSOUT.get() else { return };
+        if FORWARDING.with(|f| f.replace(true)) {
+            return;
+        }
+        let mut message = MessageText::default();
+        event.record(&mut message);
+        if let Ok(guard) = slot.lock()
+            && let Some(handle) = guard.as_ref()
+        {
+            let level = match *meta.level() {
+                Level::ERROR => LogLevel::Error,
+                Level::WARN => LogLevel::Warn,
+                _ => LogLevel::Info,
+            };
+            handle.rosout_raw(
+                wall_time(),
+                level,
+                handle.base_name(),
+                &message.0,
+                meta.file().unwrap_or(""),
+                meta.module_path().unwrap_or(""),
+                meta.line().unwrap_or(0),
+            );
+        }
+        FORWARDING.with(|f| f.set(false));
+    }
+}
+
+/// Renders an event's message and fields as one line.
+#[derive(Default)]
+struct MessageText(String);
+
+impl Visit for MessageText {
+    fn record_debug(&mut self, field: &Field, value: &dyn std::fmt::Debug) {
+        if field.name() == "message" {
+            let _ = write!(self.0, "{value:?}");
+        } else {
+            let _ = write!(self.0, " {}={value:?}", field.name());
+        }
+    }
+
+    fn record_str(&mut self, field: &Field, value: &str) {
+        if field.name() == "message" {
+            self.0.push_str(value);
+        } else {
+            let _ = write!(self.0, " {}={value}", field.name());
+        }
+    }
+}
+
+/// Wall-clock stamp for log records (rcl stamps rosout with the system clock too).
+fn wall_time() -> Time {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default();
+    Time::new(now.as_secs() as i32, now.subsec_nanos())
+}

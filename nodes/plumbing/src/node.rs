@@ -1,0 +1,259 @@
+//! [`RosNode`]: one ROS 2 node with everything a causal-arm node needs, built from the
+//! environment and `--ros-args`.
+
+use std::thread::JoinHandle;
+
+use causal_arm_msgs::{RosMessage, RosService};
+use ros2_client::{
+    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
+    ROSTime, Server, ServiceTypeName, Subscription, Client,
+};
+use thiserror::Error;
+
+use crate::env::{EnvError, RosEnv};
+use crate::logging;
+use crate::params::{ParamError, ParamSpec, Params, RosArgs};
+use crate::qos;
+
+/// Why a node could not start; every variant says what to fix.
+#[derive(Debug, Error)]
+pub enum NodeError {
+    /// A ROS environment variable is invalid.
+    #[error(transparent)]
+    Env(#[from] EnvError),
+    /// `--ros-args` or a parameter is invalid.
+    #[error(transparent)]
+    Param(#[from] ParamError),
+    /// Node or topic name is not a valid ROS 2 name.
+    #[error("invalid ROS name {name:?}: {reason}")]
+    Name {
+        /// The rejected name.
+        name: String,
+        /// What the name checker said.
+        reason: String,
+    },
+    /// DDS refused to create an entity.
+    #[error("DDS error while creating {what}: {reason}")]
+    Dds {
+        /// Which entity was being created.
+        what: String,
+        /// The DDS error.
+        reason: String,
+    },
+}
+
+fn dds_err(what: impl Into<String>) -> impl FnOnce(ros2_client::CreateError) -> NodeError {
+    let what = what.into();
+    move |e| NodeError::Dds {
+        what,
+        reason: format!("{e:?}"),
+    }
+}
+
+/// A running node: context, ros2-client node (with its spinner serving parameters and
+/// `/clock`), validated parameters and rosout logging.
+pub struct RosNode {
+    env: RosEnv,
+    params: Params,
+    remaps: Vec<(String, String)>,
+    /// Always `Some` until drop, which must drop the node before joining its spinner.
+    node: Option<Node>,
+    spinner: Option<JoinHandle<()>>,
+    _context: Context,
+}
+
+impl RosNode {
+    /// Creates the node `default_name` (overridable with `-r __node:=`), in the namespace
+    /// given by `-r __ns:=` (default `/`), with `specs` resolved from `ros_args`.
+    pub fn new(default_name: &str, specs: &[ParamSpec], ros_args: &RosArgs) -> Result<Self, NodeError> {
+        let env = RosEnv::from_env()?;
+        Self::with_env(env, default_name, specs, ros_args)
+    }
+
+    /// As [`RosNode::new`] with an explicit environment.
+    pub fn with_env(
+        env: RosEnv,
+        default_name: &str,
+        specs: &[ParamSpec],
+        ros_args: &RosArgs,
+    ) -> Result<Self, NodeError> {
+        logging::init_with_level(ros_args.log_level.as_deref());
+        let name = ros_args.node_name.as_deref().unwrap_or(default_name);
+        let namespace = ros_args.namespace.as_deref().unwrap_or("/");
+        let params = Params::resolve(name, specs, &ros_args.params)?;
+        let node_name = NodeName::new(namespace, name).map_err(|e| NodeError::Name {
+            name: format!("{namespace}/{name}"),
+            reason: format!("{e:?}"),
+        })?;
+        let participant = env.domain_participant().map_err(|e| NodeError::Dds {
+            what: format!("DDS participant in domain {}", env.domain_id),
+            reason: format!("{e:?}"),
+        })?;
+        let context = Context::from_domain_participant(participant).map_err(dds_err("ROS context"))?;
+        let mut options = NodeOptions::new().enable_rosout(true);
+        for (pname, value) in params.iter() {
+            options = options.declare_parameter(pname, value.to_ros());
+        }
+        let mut node = context
+            .new_node(node_name, options)
+            .map_err(|e| NodeError::Dds {
+                what: format!("node {name}"),
+                reason: format!("{e:?}"),
+            })?;
+        let spinner = node.spinner().map_err(dds_err("node spinner"))?;
+        let spinner = std::thread::Builder::new()
+            .name(format!("{name}-spin"))
+            .spawn(move || {
+                if let Err(e) = smol::block_on(spinner.spin()) {
+                    tracing::error!("spinner stopped: {e:?}");
+                }
+            })
+            .map_err(|e| NodeError::Dds {
+                what: "spinner thread".into(),
+                reason: e.to_string(),
+            })?;
+        logging::attach_rosout(node.logging_handle());
+        tracing::info!(
+            "node {} up: domain {}, discovery {:?}, use_sim_time {}",
+            name,
+            env.domain_id,
+            env.discovery_range,
+            params.use_sim_time()
+        );
+        Ok(Self {
+            env,
+            params,
+            remaps: ros_args.remaps.clone(),
+            node: Some(node),
+            spinner: Some(spinner),
+            _context: context,
+        })
+    }
+
+    fn node_mut(&mut self) -> &mut Node {
+        self.node.as_mut().expect("node lives until drop")
+    }
+
+    fn node_ref(&self) -> &Node {
+        self.node.as_ref().expect("node lives until drop")
+    }
+
+    /// The validated parameters.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// The environment the node was built from.
+    pub fn env(&self) -> &RosEnv {
+        &self.env
+    }
+
+    /// The underlying ros2-client node, for what this wrapper does not cover.
+    pub fn inner(&mut self) -> &mut Node {
+        self.node_mut()
+    }
+
+    /// Current time: `/clock` when `use_sim_time` is true, else the wall clock.
+    pub fn now(&self) -> ROSTime {
+        self.node_ref().time_now()
+    }
+
+    /// Applies `-r from:=to` remappings to a topic or service name.
+    pub fn resolve_name(&self, name: &str) -> String {
+        self.remaps
+            .iter()
+            .find(|(from, _)| from == name)
+            .map(|(_, to)| to.clone())
+            .unwrap_or_else(|| name.to_owned())
+    }
+
+    fn ros_name(&self, name: &str) -> Result<Name, NodeError> {
+        let resolved = self.resolve_name(name);
+        Name::parse(&resolved).map_err(|e| NodeError::Name {
+            name: resolved,
+            reason: format!("{e:?}"),
+        })
+    }
+
+    fn topic<M: RosMessage>(&mut self, name: &str, qos: &QosProfile) -> Result<rustdds::Topic, NodeError> {
+        let ros_name = self.ros_name(name)?;
+        self.node_mut()
+            .create_topic(&ros_name, MessageTypeName::new(M::PACKAGE, M::NAME), qos)
+            .map_err(dds_err(format!("topic {name}")))
+    }
+
+    /// A publisher of `M` on `topic` with `qos`.
+    pub fn publisher<M: RosMessage>(&mut self, topic: &str, qos: QosProfile) -> Result<Publisher<M>, NodeError> {
+        let t = self.topic::<M>(topic, &qos)?;
+        self.node_mut()
+            .create_publisher(&t, Some(qos))
+            .map_err(dds_err(format!("publisher on {topic}")))
+    }
+
+    /// A subscription to `M` on `topic` with `qos`.
+    pub fn subscription<M: RosMessage>(
+        &mut self,
+        topic: &str,
+        qos: QosProfile,
+    ) -> Result<Subscription<M>, NodeError> {
+        let t = self.topic::<M>(topic, &qos)?;
+        self.node_mut()
+            .create_subscription(&t, Some(qos))
+            .map_err(dds_err(format!("subscription to {topic}")))
+    }
+
+    fn service_type<S: RosService>() -> ServiceTypeName {
+        let (package, rest) = S::ROS_TYPE.split_once('/').unwrap_or(("", S::ROS_TYPE));
+        let name = rest.rsplit('/').next().unwrap_or(rest);
+        ServiceTypeName::new(package, name)
+    }
+
+    /// A server of service `S` at `name`, mapped as `RMW_IMPLEMENTATION` asks.
+    pub fn server<S: RosService>(&mut self, name: &str) -> Result<Server<S::Request, S::Response>, NodeError>
+    where
+        S::Request: ros2_client::Message,
+        S::Response: ros2_client::Message,
+    {
+        let ros_name = self.ros_name(name)?;
+        let mapping = self.env.service_mapping;
+        self.node_mut()
+            .create_server(
+                mapping,
+                &ros_name,
+                &Self::service_type::<S>(),
+                qos::services(),
+                qos::services(),
+            )
+            .map_err(dds_err(format!("service server {name}")))
+    }
+
+    /// A client of service `S` at `name`.
+    pub fn client<S: RosService>(&mut self, name: &str) -> Result<Client<S::Request, S::Response>, NodeError>
+    where
+        S::Request: ros2_client::Message,
+        S::Response: ros2_client::Message,
+    {
+        let ros_name = self.ros_name(name)?;
+        let mapping = self.env.service_mapping;
+        self.node_mut()
+            .create_client(
+                mapping,
+                &ros_name,
+                &Self::service_type::<S>(),
+                qos::services(),
+                qos::services(),
+            )
+            .map_err(dds_err(format!("service client {name}")))
+    }
+}
+
+impl Drop for RosNode {
+    fn drop(&mut self) {
+        logging::detach_rosout();
+        // Dropping the node signals its spinner to stop.
+        drop(self.node.take());
+        if let Some(handle) = self.spinner.take() {
+            let _ = handle.join();
+        }
+    }
+}

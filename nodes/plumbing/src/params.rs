@@ -1,0 +1,468 @@
+//! Node parameters from the command line, ROS 2 style (`--ros-args -p name:=value`).
+//!
+//! Each node declares its parameters up front ([`ParamSpec`]); values given on the
+//! command line are parsed as YAML-like scalars and checked against the declared type
+//! and range, so `-p steps:=ten` or a misspelt name stops the node with a message that
+//! names the parameter instead of running with a default the user did not want.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use thiserror::Error;
+
+/// Type of a declared parameter (the ROS 2 parameter types the project uses).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamKind {
+    /// `true` / `false`.
+    Bool,
+    /// 64-bit signed integer.
+    Integer,
+    /// 64-bit float; integer literals are accepted and widened.
+    Double,
+    /// Free text.
+    String,
+    /// `[1.0, 2.0]`.
+    DoubleArray,
+}
+
+impl fmt::Display for ParamKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            ParamKind::Bool => "bool",
+            ParamKind::Integer => "integer",
+            ParamKind::Double => "double",
+            ParamKind::String => "string",
+            ParamKind::DoubleArray => "double array",
+        })
+    }
+}
+
+/// A typed parameter value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamValue {
+    /// See [`ParamKind::Bool`].
+    Bool(bool),
+    /// See [`ParamKind::Integer`].
+    Integer(i64),
+    /// See [`ParamKind::Double`].
+    Double(f64),
+    /// See [`ParamKind::String`].
+    String(String),
+    /// See [`ParamKind::DoubleArray`].
+    DoubleArray(Vec<f64>),
+}
+
+impl ParamValue {
+    /// The kind of this value.
+    pub fn kind(&self) -> ParamKind {
+        match self {
+            ParamValue::Bool(_) => ParamKind::Bool,
+            ParamValue::Integer(_) => ParamKind::Integer,
+            ParamValue::Double(_) => ParamKind::Double,
+            ParamValue::String(_) => ParamKind::String,
+            ParamValue::DoubleArray(_) => ParamKind::DoubleArray,
+        }
+    }
+
+    /// Converts into ros2-client's value so the node's parameter services
+    /// (`ros2 param get/list`) report what we run with.
+    pub fn to_ros(&self) -> ros2_client::ParameterValue {
+        use ros2_client::ParameterValue as P;
+        match self {
+            ParamValue::Bool(v) => P::Boolean(*v),
+            ParamValue::Integer(v) => P::Integer(*v),
+            ParamValue::Double(v) => P::Double(*v),
+            ParamValue::String(v) => P::String(v.clone()),
+            ParamValue::DoubleArray(v) => P::DoubleArray(v.clone()),
+        }
+    }
+}
+
+impl fmt::Display for ParamValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamValue::Bool(v) => write!(f, "{v}"),
+            ParamValue::Integer(v) => write!(f, "{v}"),
+            ParamValue::Double(v) => write!(f, "{v}"),
+            ParamValue::String(v) => write!(f, "{v:?}"),
+            ParamValue::DoubleArray(v) => write!(f, "{v:?}"),
+        }
+    }
+}
+
+/// Declaration of one node parameter.
+#[derive(Debug, Clone)]
+pub struct ParamSpec {
+    /// Name as given after `-p`.
+    pub name: &'static str,
+    /// Value used when the command line does not set it; also fixes the type.
+    pub default: ParamValue,
+    /// One line for `--help`-style listings and error messages.
+    pub description: &'static str,
+    /// Inclusive numeric range for integer and double parameters.
+    pub range: Option<(f64, f64)>,
+}
+
+impl ParamSpec {
+    /// A parameter without a range.
+    pub fn new(name: &'static str, default: ParamValue, description: &'static str) -> Self {
+        Self {
+            name,
+            default,
+            description,
+            range: None,
+        }
+    }
+
+    /// Restricts an integer or double parameter to `[min, max]`.
+    pub fn with_range(mut self, min: f64, max: f64) -> Self {
+        self.range = Some((min, max));
+        self
+    }
+}
+
+/// Every node has `use_sim_time`, as in ROS 2.
+pub fn use_sim_time_spec() -> ParamSpec {
+    ParamSpec::new(
+        "use_sim_time",
+        ParamValue::Bool(false),
+        "take time from /clock instead of the wall clock",
+    )
+}
+
+/// Why command-line arguments or parameters were rejected.
+#[derive(Debug, Error, PartialEq)]
+pub enum ParamError {
+    /// `-p` names a parameter the node does not declare.
+    #[error("unknown parameter {name:?} for node {node}; declared parameters: {known}")]
+    Unknown {
+        /// Parameter name as given.
+        name: String,
+        /// Node that rejected it.
+        node: String,
+        /// Comma-separated declared names.
+        known: String,
+    },
+    /// The value does not parse as the declared type.
+    #[error("parameter {name:?}: expected {expected}, got {got:?}")]
+    WrongType {
+        /// Parameter name.
+        name: String,
+        /// Declared type.
+        expected: ParamKind,
+        /// Raw value from the command line.
+        got: String,
+    },
+    /// The value is outside the declared range.
+    #[error("parameter {name:?} = {value} is outside its range [{min}, {max}]")]
+    OutOfRange {
+        /// Parameter name.
+        name: String,
+        /// Parsed value.
+        value: f64,
+        /// Lower bound.
+        min: f64,
+        /// Upper bound.
+        max: f64,
+    },
+    /// A `--ros-args` item is malformed or not supported.
+    #[error("invalid --ros-args: {0}")]
+    Syntax(String),
+}
+
+/// What `--ros-args … [--]` asked for.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RosArgs {
+    /// `-p name:=value`, in order, raw.
+    pub params: Vec<(String, String)>,
+    /// `-r __node:=name`.
+    pub node_name: Option<String>,
+    /// `-r __ns:=/namespace`.
+    pub namespace: Option<String>,
+    /// `-r from:=to` topic remappings other than `__node`/`__ns`.
+    pub remaps: Vec<(String, String)>,
+    /// `--log-level LEVEL`.
+    pub log_level: Option<String>,
+}
+
+impl RosArgs {
+    /// Splits `args` into the ROS part and the rest (the program's own arguments),
+    /// following rcl: everything between `--ros-args` and `--` (or the end) is ROS's.
+    pub fn split(args: &[String]) -> Result<(RosArgs, Vec<String>), ParamError> {
+        let mut ros = RosArgs::default();
+        let mut rest = Vec::new();
+        let mut iter = args.iter();
+        while let Some(arg) = iter.next() {
+            if arg != "--ros-args" {
+                rest.push(arg.clone());
+                continue;
+            }
+            while let Some(item) = iter.next() {
+                let mut value_of = |flag: &str| {
+                    iter.next()
+                        .cloned()
+                        .ok_or_else(|| ParamError::Syntax(format!("{flag} needs a value")))
+                };
+                match item.as_str() {
+                    "--" => break,
+                    "--ros-args" => {}
+                    "-p" | "--param" => {
+                        let pair = value_of(item)?;
+                        ros.params.push(split_assignment(&pair, item)?);
+                    }
+                    "-r" | "--remap" => {
+                        let (from, to) = split_assignment(&value_of(item)?, item)?;
+                        match from.as_str() {
+                            "__node" | "__name" => ros.node_name = Some(to),
+                            "__ns" => ros.namespace = Some(to),
+                            _ => ros.remaps.push((from, to)),
+                        }
+                    }
+                    "--log-level" => ros.log_level = Some(value_of(item)?),
+                    other => {
+                        return Err(ParamError::Syntax(format!(
+                            "unsupported item {other:?} (supported: -p/--param NAME:=VALUE, -r/--remap FROM:=TO, --log-level LEVEL)"
+                        )));
+                    }
+                }
+            }
+        }
+        Ok((ros, rest))
+    }
+}
+
+fn split_assignment(pair: &str, flag: &str) -> Result<(String, String), ParamError> {
+    match pair.split_once(":=") {
+        Some((name, value)) if !name.is_empty() => Ok((name.to_owned(), value.to_owned())),
+        _ => Err(ParamError::Syntax(format!(
+            "{flag} expects NAME:=VALUE, got {pair:?}"
+        ))),
+    }
+}
+
+/// The validated parameters of one node.
+#[derive(Debug, Clone)]
+pub struct Params {
+    values: BTreeMap<&'static str, ParamValue>,
+}
+
+impl Params {
+    /// Applies `overrides` (name, raw value) to the declared `specs`; `use_sim_time` is
+    /// declared implicitly.
+    pub fn resolve(
+        node: &str,
+        specs: &[ParamSpec],
+        overrides: &[(String, String)],
+    ) -> Result<Self, ParamError> {
+        let mut all: Vec<ParamSpec> = specs.to_vec();
+        if !all.iter().any(|s| s.name == "use_sim_time") {
+            all.push(use_sim_time_spec());
+        }
+        let mut values: BTreeMap<&'static str, ParamValue> =
+            all.iter().map(|s| (s.name, s.default.clone())).collect();
+        for (name, raw) in overrides {
+            let Some(spec) = all.iter().find(|s| s.name == name) else {
+                return Err(ParamError::Unknown {
+                    name: name.clone(),
+                    node: node.to_owned(),
+                    known: all.iter().map(|s| s.name).collect::<Vec<_>>().join(", "),
+                });
+            };
+            values.insert(spec.name, parse_value(spec, raw)?);
+        }
+        Ok(Self { values })
+    }
+
+    /// All values, by name.
+    pub fn iter(&self) -> impl Iterator<Item = (&'static str, &ParamValue)> {
+        self.values.iter().map(|(k, v)| (*k, v))
+    }
+
+    fn get(&self, name: &str) -> &ParamValue {
+        self.values
+            .get(name)
+            .unwrap_or_else(|| panic!("parameter {name:?} was never declared (programming error)"))
+    }
+
+    /// A declared bool parameter. Panics only on a programming error (undeclared or
+    /// differently typed name), never on user input, which [`Params::resolve`] validated.
+    pub fn bool(&self, name: &str) -> bool {
+        match self.get(name) {
+            ParamValue::Bool(v) => *v,
+            other => panic!("parameter {name:?} is {}, not bool", other.kind()),
+        }
+    }
+
+    /// A declared integer parameter (see [`Params::bool`] on panics).
+    pub fn integer(&self, name: &str) -> i64 {
+        match self.get(name) {
+            ParamValue::Integer(v) => *v,
+            other => panic!("parameter {name:?} is {}, not integer", other.kind()),
+        }
+    }
+
+    /// A declared double parameter (see [`Params::bool`] on panics).
+    pub fn double(&self, name: &str) -> f64 {
+        match self.get(name) {
+            ParamValue::Double(v) => *v,
+            other => panic!("parameter {name:?} is {}, not double", other.kind()),
+        }
+    }
+
+    /// A declared string parameter (see [`Params::bool`] on panics).
+    pub fn string(&self, name: &str) -> &str {
+        match self.get(name) {
+            ParamValue::String(v) => v,
+            other => panic!("parameter {name:?} is {}, not string", other.kind()),
+        }
+    }
+
+    /// A declared double-array parameter (see [`Params::bool`] on panics).
+    pub fn double_array(&self, name: &str) -> &[f64] {
+        match self.get(name) {
+            ParamValue::DoubleArray(v) => v,
+            other => panic!("parameter {name:?} is {}, not double array", other.kind()),
+        }
+    }
+
+    /// Whether the node runs on simulated time.
+    pub fn use_sim_time(&self) -> bool {
+        self.bool("use_sim_time")
+    }
+}
+
+fn parse_value(spec: &ParamSpec, raw: &str) -> Result<ParamValue, ParamError> {
+    let expected = spec.default.kind();
+    let wrong = || ParamError::WrongType {
+        name: spec.name.to_owned(),
+        expected,
+        got: raw.to_owned(),
+    };
+    let text = raw.trim();
+    let value = match expected {
+        ParamKind::Bool => match text.to_ascii_lowercase().as_str() {
+            "true" => ParamValue::Bool(true),
+            "false" => ParamValue::Bool(false),
+            _ => return Err(wrong()),
+        },
+        ParamKind::Integer => ParamValue::Integer(text.parse().map_err(|_| wrong())?),
+        ParamKind::Double => ParamValue::Double(parse_finite(text).ok_or_else(wrong)?),
+        ParamKind::String => ParamValue::String(unquote(text).to_owned()),
+        ParamKind::DoubleArray => {
+            let inner = text
+                .strip_prefix('[')
+                .and_then(|t| t.strip_suffix(']'))
+                .ok_or_else(wrong)?;
+            let items: Option<Vec<f64>> = if inner.trim().is_empty() {
+                Some(Vec::new())
+            } else {
+                inner.split(',').map(|t| parse_finite(t.trim())).collect()
+            };
+            ParamValue::DoubleArray(items.ok_or_else(wrong)?)
+        }
+    };
+    if let Some((min, max)) = spec.range {
+        let numbers: Vec<f64> = match &value {
+            ParamValue::Integer(v) => vec![*v as f64],
+            ParamValue::Double(v) => vec![*v],
+            ParamValue::DoubleArray(v) => v.clone(),
+            _ => Vec::new(),
+        };
+        if let Some(bad) = numbers.into_iter().find(|v| *v < min || *v > max) {
+            return Err(ParamError::OutOfRange {
+                name: spec.name.to_owned(),
+                value: bad,
+                min,
+                max,
+            });
+        }
+    }
+    Ok(value)
+}
+
+fn parse_finite(text: &str) -> Option<f64> {
+    text.parse::<f64>().ok().filter(|v| v.is_finite())
+}
+
+fn unquote(text: &str) -> &str {
+    for q in ['"', '\''] {
+        if let Some(inner) = text.strip_prefix(q).and_then(|t| t.strip_suffix(q)) {
+            return inner;
+        }
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(items: &[&str]) -> Vec<String> {
+        items.iter().map(|s| s.to_string()).collect()
+    }
+
+    fn specs() -> Vec<ParamSpec> {
+        vec![
+            ParamSpec::new("steps", ParamValue::Integer(100), "steps to run").with_range(1.0, 1e9),
+            ParamSpec::new("sigma", ParamValue::Double(0.35), "spread"),
+            ParamSpec::new("name", ParamValue::String("x".into()), "label"),
+            ParamSpec::new("weights", ParamValue::DoubleArray(vec![]), "w"),
+        ]
+    }
+
+    #[test]
+    fn splits_ros_args_from_program_args() {
+        let (ros, rest) = RosArgs::split(&args(&[
+            "--out", "bags/a", "--ros-args", "-p", "steps:=5", "-r", "__node:=sim2", "-r",
+            "/a:=/b", "--log-level", "debug", "--", "--verbose",
+        ]))
+        .unwrap();
+        assert_eq!(rest, args(&["--out", "bags/a", "--verbose"]));
+        assert_eq!(ros.params, vec![("steps".to_string(), "5".to_string())]);
+        assert_eq!(ros.node_name.as_deref(), Some("sim2"));
+        assert_eq!(ros.remaps, vec![("/a".to_string(), "/b".to_string())]);
+        assert_eq!(ros.log_level.as_deref(), Some("debug"));
+    }
+
+    #[test]
+    fn typed_values_are_parsed() {
+        let over = vec![
+            ("steps".to_string(), "7".to_string()),
+            ("sigma".to_string(), "1".to_string()),
+            ("name".to_string(), "'hello'".to_string()),
+            ("weights".to_string(), "[1, 2.5]".to_string()),
+            ("use_sim_time".to_string(), "True".to_string()),
+        ];
+        let p = Params::resolve("n", &specs(), &over).unwrap();
+        assert_eq!(p.integer("steps"), 7);
+        assert_eq!(p.double("sigma"), 1.0);
+        assert_eq!(p.string("name"), "hello");
+        assert_eq!(p.double_array("weights"), &[1.0, 2.5]);
+        assert!(p.use_sim_time());
+    }
+
+    #[test]
+    fn unknown_parameter_is_named() {
+        let err = Params::resolve("sim", &specs(), &[("stepz".into(), "1".into())]).unwrap_err();
+        let text = err.to_string();
+        assert!(text.contains("unknown parameter \"stepz\""), "{text}");
+        assert!(text.contains("steps") && text.contains("use_sim_time"), "{text}");
+    }
+
+    #[test]
+    fn wrong_type_and_range_are_named() {
+        let err = Params::resolve("n", &specs(), &[("steps".into(), "ten".into())]).unwrap_err();
+        assert_eq!(err.to_string(), "parameter \"steps\": expected integer, got \"ten\"");
+        let err = Params::resolve("n", &specs(), &[("steps".into(), "0".into())]).unwrap_err();
+        assert!(matches!(err, ParamError::OutOfRange { .. }), "{err}");
+        let err = Params::resolve("n", &specs(), &[("sigma".into(), "nan".into())]).unwrap_err();
+        assert!(matches!(err, ParamError::WrongType { .. }), "{err}");
+    }
+
+    #[test]
+    fn malformed_ros_args_are_rejected() {
+        assert!(RosArgs::split(&args(&["--ros-args", "-p", "steps=5"])).is_err());
+        assert!(RosArgs::split(&args(&["--ros-args", "-p"])).is_err());
+        assert!(RosArgs::split(&args(&["--ros-args", "--enclave", "x"])).is_err());
+    }
+}

@@ -1,0 +1,80 @@
+//! Named QoS profiles, so every node picks delivery guarantees by intent, not by knob.
+
+use std::time::Duration;
+
+use ros2_client::{
+    QosProfile,
+    qos::{Durability, History, Reliability, WhenFull},
+};
+
+/// Data that is recorded into bags: reliable, keep-all, a publisher blocks rather than
+/// dropping when a reader lags (keep-last would silently lose samples).
+pub fn recorded() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability(Reliability::Reliable {
+            when_full: WhenFull::Wait(Duration::from_secs(10)),
+        })
+        .history(History::KeepAll)
+}
+
+/// `/clock`, as rclcpp's `ClockQoS`: best effort, keep last 1, only the newest time matters.
+pub fn clock() -> QosProfile {
+    QosProfile::subscription_default()
+        .reliability(Reliability::BestEffort)
+        .history(History::KeepLast { depth: 1 })
+}
+
+/// Latched topics such as `/robot_description` and reports: late joiners get the last value.
+pub fn latched() -> QosProfile {
+    QosProfile::publisher_default()
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 })
+}
+
+/// Live monitoring streams for humans (`ros2 topic echo`): reliable, keep last 10,
+/// like rclcpp's default profile.
+pub fn default_reliable() -> QosProfile {
+    QosProfile::publisher_default().history(History::KeepLast { depth: 10 })
+}
+
+/// Service request and reply topics, as rmw's `rmw_qos_profile_services_default`.
+pub fn services() -> QosProfile {
+    default_reliable()
+}
+
+/// Looks a profile up by the name users give on the command line.
+pub fn by_name(name: &str) -> Option<QosProfile> {
+    Some(match name {
+        "recorded" => recorded(),
+        "clock" => clock(),
+        "latched" => latched(),
+        "default" => default_reliable(),
+        "services" => services(),
+        "best_effort" => QosProfile::subscription_default().history(History::KeepLast { depth: 10 }),
+        _ => return None,
+    })
+}
+
+/// Profile names accepted by [`by_name`], for error messages and `--help`.
+pub const PROFILE_NAMES: &[&str] = &["recorded", "clock", "latched", "default", "services", "best_effort"];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recorded_never_drops() {
+        let q = recorded();
+        assert_eq!(q.history, History::KeepAll);
+        assert!(matches!(q.reliability, Reliability::Reliable { .. }));
+    }
+
+    #[test]
+    fn every_named_profile_resolves() {
+        for name in PROFILE_NAMES {
+            assert!(by_name(name).is_some(), "{name}");
+        }
+        assert!(by_name("fast").is_none());
+        assert_eq!(latched().durability, Durability::TransientLocal);
+    }
+}

@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# The project's one test command (see README): builds everything, prepares the Python
+# venv of independent oracles (cached under target/pyvenv), then runs the Rust tests and
+# the Python interop tests. Everything that may start a DDS participant runs inside a
+# private loopback-only network namespace (tests/netns-run), so no traffic leaves the host.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+VENV=${CAUSAL_ARM_VENV:-$ROOT/target/pyvenv}
+REQ=$ROOT/tests/python/requirements.txt
+PYTHON=${PYTHON:-python3}
+
+step() { printf '\n==> %s\n' "$*"; }
+
+step "Python venv with pinned oracles ($VENV)"
+stamp=$VENV/.requirements.sha256
+want=$(sha256sum "$REQ" | cut -d' ' -f1)
+if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+  "$PYTHON" -m venv "$VENV"
+  "$VENV/bin/python" -m pip install --quiet --upgrade pip
+  "$VENV/bin/python" -m pip install --quiet -r "$REQ"
+  echo "$want" > "$stamp"
+else
+  echo "up to date"
+fi
+
+step "cargo build (workspace binaries)"
+cargo build --workspace --bins --locked
+
+step "cargo test --workspace (inside a private network namespace)"
+tests/netns-run cargo test --workspace --locked
+
+step "Python interop tests (inside a private network namespace)"
+tests/netns-run "$VENV/bin/python" -m pytest -q tests/python "$@"
+
+step "all tests passed"

@@ -93,20 +93,26 @@ pub fn run(args: &TopicArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     }
 }
 
-fn visit<V: MessageTypeVisitor<Output = anyhow::Result<()>>>(msg_type: &str, v: V) -> anyhow::Result<anyhow::Result<()>> {
-    visit_message_type(msg_type, v).map_err(|e| {
-        anyhow::anyhow!("{e}; run `causal-arm topic types` for the list")
-    })
+fn visit<V: MessageTypeVisitor<Output = anyhow::Result<()>>>(
+    msg_type: &str,
+    v: V,
+) -> anyhow::Result<anyhow::Result<()>> {
+    visit_message_type(msg_type, v)
+        .map_err(|e| anyhow::anyhow!("{e}; run `causal-arm topic types` for the list"))
 }
 
 fn qos_profile(name: &str) -> anyhow::Result<ros2_client::QosProfile> {
     qos::by_name(name).with_context(|| {
-        format!("unknown --qos {name:?}; expected one of {}", qos::PROFILE_NAMES.join(", "))
+        format!(
+            "unknown --qos {name:?}; expected one of {}",
+            qos::PROFILE_NAMES.join(", ")
+        )
     })
 }
 
 fn positive_seconds(value: f64, flag: &str) -> anyhow::Result<Duration> {
-    Duration::try_from_secs_f64(value).with_context(|| format!("{flag} must be a non-negative number of seconds, got {value}"))
+    Duration::try_from_secs_f64(value)
+        .with_context(|| format!("{flag} must be a non-negative number of seconds, got {value}"))
 }
 
 struct PubVisitor<'a> {
@@ -119,8 +125,8 @@ impl MessageTypeVisitor for PubVisitor<'_> {
 
     fn visit<M: RosMessage>(self) -> anyhow::Result<()> {
         let a = self.args;
-        let value: serde_json::Value =
-            serde_json::from_str(&a.json).with_context(|| format!("--json is not valid JSON: {}", a.json))?;
+        let value: serde_json::Value = serde_json::from_str(&a.json)
+            .with_context(|| format!("--json is not valid JSON: {}", a.json))?;
         let message: M = serde_json::from_value(value)
             .with_context(|| format!("--json does not match {}", M::ROS_TYPE))?;
         if !(a.rate > 0.0 && a.rate.is_finite()) {

@@ -29,9 +29,7 @@ pub enum DiscoveryRange {
 #[derive(Debug, Error, PartialEq, Eq)]
 pub enum EnvError {
     /// `ROS_DOMAIN_ID` is not an integer in 0..=232.
-    #[error(
-        "ROS_DOMAIN_ID={value:?} is invalid: expected an integer from 0 to {MAX_DOMAIN_ID}"
-    )]
+    #[error("ROS_DOMAIN_ID={value:?} is invalid: expected an integer from 0 to {MAX_DOMAIN_ID}")]
     DomainId {
         /// The offending value as found in the environment.
         value: String,
@@ -122,8 +120,12 @@ impl RosEnv {
         let builder = rustdds::DomainParticipantBuilder::new(self.domain_id);
         let builder = match self.discovery_range {
             DiscoveryRange::Subnet => builder,
-            DiscoveryRange::Localhost => builder.with_only_networks(loopback).same_host_loopback(true),
-            DiscoveryRange::Off => builder.with_only_networks(loopback).same_host_loopback(false),
+            DiscoveryRange::Localhost => builder
+                .with_only_networks(loopback)
+                .same_host_loopback(true),
+            DiscoveryRange::Off => builder
+                .with_only_networks(loopback)
+                .same_host_loopback(false),
         };
         builder.build()
     }
@@ -153,7 +155,12 @@ mod tests {
     fn domain_id_is_validated() {
         assert_eq!(env(&[("ROS_DOMAIN_ID", "42")]).unwrap().domain_id, 42);
         let err = env(&[("ROS_DOMAIN_ID", "abc")]).unwrap_err();
-        assert_eq!(err, EnvError::DomainId { value: "abc".into() });
+        assert_eq!(
+            err,
+            EnvError::DomainId {
+                value: "abc".into()
+            }
+        );
         assert!(err.to_string().contains("ROS_DOMAIN_ID=\"abc\""), "{err}");
         assert!(env(&[("ROS_DOMAIN_ID", "233")]).is_err());
         assert!(env(&[("ROS_DOMAIN_ID", "-1")]).is_err());
@@ -162,12 +169,24 @@ mod tests {
     #[test]
     fn discovery_range_and_legacy_localhost_only() {
         let range = |pairs: &[(&str, &str)]| env(pairs).unwrap().discovery_range;
-        assert_eq!(range(&[("ROS_LOCALHOST_ONLY", "1")]), DiscoveryRange::Localhost);
-        assert_eq!(range(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "localhost")]), DiscoveryRange::Localhost);
-        assert_eq!(range(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF")]), DiscoveryRange::Off);
+        assert_eq!(
+            range(&[("ROS_LOCALHOST_ONLY", "1")]),
+            DiscoveryRange::Localhost
+        );
+        assert_eq!(
+            range(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "localhost")]),
+            DiscoveryRange::Localhost
+        );
+        assert_eq!(
+            range(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF")]),
+            DiscoveryRange::Off
+        );
         // The new variable wins over the deprecated one, as in rmw.
         assert_eq!(
-            range(&[("ROS_LOCALHOST_ONLY", "1"), ("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")]),
+            range(&[
+                ("ROS_LOCALHOST_ONLY", "1"),
+                ("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")
+            ]),
             DiscoveryRange::Subnet
         );
         assert!(env(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "LAN")]).is_err());

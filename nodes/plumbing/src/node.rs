@@ -5,8 +5,8 @@ use std::thread::JoinHandle;
 
 use causal_arm_msgs::{RosMessage, RosService};
 use ros2_client::{
-    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
-    ROSTime, Server, ServiceTypeName, Subscription, Client,
+    Client, Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
+    ROSTime, Server, ServiceTypeName, Subscription,
 };
 use thiserror::Error;
 
@@ -65,7 +65,11 @@ pub struct RosNode {
 impl RosNode {
     /// Creates the node `default_name` (overridable with `-r __node:=`), in the namespace
     /// given by `-r __ns:=` (default `/`), with `specs` resolved from `ros_args`.
-    pub fn new(default_name: &str, specs: &[ParamSpec], ros_args: &RosArgs) -> Result<Self, NodeError> {
+    pub fn new(
+        default_name: &str,
+        specs: &[ParamSpec],
+        ros_args: &RosArgs,
+    ) -> Result<Self, NodeError> {
         let env = RosEnv::from_env()?;
         Self::with_env(env, default_name, specs, ros_args)
     }
@@ -89,7 +93,8 @@ impl RosNode {
             what: format!("DDS participant in domain {}", env.domain_id),
             reason: format!("{e:?}"),
         })?;
-        let context = Context::from_domain_participant(participant).map_err(dds_err("ROS context"))?;
+        let context =
+            Context::from_domain_participant(participant).map_err(dds_err("ROS context"))?;
         let mut options = NodeOptions::new().enable_rosout(true);
         for (pname, value) in params.iter() {
             options = options.declare_parameter(pname, value.to_ros());
@@ -175,7 +180,11 @@ impl RosNode {
         })
     }
 
-    fn topic<M: RosMessage>(&mut self, name: &str, qos: &QosProfile) -> Result<rustdds::Topic, NodeError> {
+    fn topic<M: RosMessage>(
+        &mut self,
+        name: &str,
+        qos: &QosProfile,
+    ) -> Result<rustdds::Topic, NodeError> {
         let ros_name = self.ros_name(name)?;
         self.node_mut()
             .create_topic(&ros_name, MessageTypeName::new(M::PACKAGE, M::NAME), qos)
@@ -183,7 +192,11 @@ impl RosNode {
     }
 
     /// A publisher of `M` on `topic` with `qos`.
-    pub fn publisher<M: RosMessage>(&mut self, topic: &str, qos: QosProfile) -> Result<Publisher<M>, NodeError> {
+    pub fn publisher<M: RosMessage>(
+        &mut self,
+        topic: &str,
+        qos: QosProfile,
+    ) -> Result<Publisher<M>, NodeError> {
         let t = self.topic::<M>(topic, &qos)?;
         self.node_mut()
             .create_publisher(&t, Some(qos))
@@ -209,7 +222,10 @@ impl RosNode {
     }
 
     /// A server of service `S` at `name`, mapped as `RMW_IMPLEMENTATION` asks.
-    pub fn server<S: RosService>(&mut self, name: &str) -> Result<Server<S::Request, S::Response>, NodeError>
+    pub fn server<S: RosService>(
+        &mut self,
+        name: &str,
+    ) -> Result<Server<S::Request, S::Response>, NodeError>
     where
         S::Request: ros2_client::Message,
         S::Response: ros2_client::Message,
@@ -228,7 +244,10 @@ impl RosNode {
     }
 
     /// A client of service `S` at `name`.
-    pub fn client<S: RosService>(&mut self, name: &str) -> Result<Client<S::Request, S::Response>, NodeError>
+    pub fn client<S: RosService>(
+        &mut self,
+        name: &str,
+    ) -> Result<Client<S::Request, S::Response>, NodeError>
     where
         S::Request: ros2_client::Message,
         S::Response: ros2_client::Message,

@@ -413,8 +413,19 @@ mod tests {
     #[test]
     fn splits_ros_args_from_program_args() {
         let (ros, rest) = RosArgs::split(&args(&[
-            "--out", "bags/a", "--ros-args", "-p", "steps:=5", "-r", "__node:=sim2", "-r",
-            "/a:=/b", "--log-level", "debug", "--", "--verbose",
+            "--out",
+            "bags/a",
+            "--ros-args",
+            "-p",
+            "steps:=5",
+            "-r",
+            "__node:=sim2",
+            "-r",
+            "/a:=/b",
+            "--log-level",
+            "debug",
+            "--",
+            "--verbose",
         ]))
         .unwrap();
         assert_eq!(rest, args(&["--out", "bags/a", "--verbose"]));
@@ -446,13 +457,19 @@ mod tests {
         let err = Params::resolve("sim", &specs(), &[("stepz".into(), "1".into())]).unwrap_err();
         let text = err.to_string();
         assert!(text.contains("unknown parameter \"stepz\""), "{text}");
-        assert!(text.contains("steps") && text.contains("use_sim_time"), "{text}");
+        assert!(
+            text.contains("steps") && text.contains("use_sim_time"),
+            "{text}"
+        );
     }
 
     #[test]
     fn wrong_type_and_range_are_named() {
         let err = Params::resolve("n", &specs(), &[("steps".into(), "ten".into())]).unwrap_err();
-        assert_eq!(err.to_string(), "parameter \"steps\": expected integer, got \"ten\"");
+        assert_eq!(
+            err.to_string(),
+            "parameter \"steps\": expected integer, got \"ten\""
+        );
         let err = Params::resolve("n", &specs(), &[("steps".into(), "0".into())]).unwrap_err();
         assert!(matches!(err, ParamError::OutOfRange { .. }), "{err}");
         let err = Params::resolve("n", &specs(), &[("sigma".into(), "nan".into())]).unwrap_err();

@@ -50,13 +50,22 @@ pub fn by_name(name: &str) -> Option<QosProfile> {
         "latched" => latched(),
         "default" => default_reliable(),
         "services" => services(),
-        "best_effort" => QosProfile::subscription_default().history(History::KeepLast { depth: 10 }),
+        "best_effort" => {
+            QosProfile::subscription_default().history(History::KeepLast { depth: 10 })
+        }
         _ => return None,
     })
 }
 
 /// Profile names accepted by [`by_name`], for error messages and `--help`.
-pub const PROFILE_NAMES: &[&str] = &["recorded", "clock", "latched", "default", "services", "best_effort"];
+pub const PROFILE_NAMES: &[&str] = &[
+    "recorded",
+    "clock",
+    "latched",
+    "default",
+    "services",
+    "best_effort",
+];
 
 #[cfg(test)]
 mod tests {

@@ -1,0 +1,456 @@
+//! Motor babbling: what the robot does to collect data, for both experiments of the paper.
+//!
+//! A babbler sees the simulator's state and answers with one [`Command`]; it is seeded
+//! and deterministic, so the same seed produces the same dataset whether the graph runs
+//! over DDS or in one process.
+//!
+//! - Experiment 1 ([`Exp1Babbler`]): every step a joint configuration drawn from
+//!   N(mean, σ²) per joint, clipped to the joint limits.
+//! - Experiment 2 ([`Exp2Babbler`]): babbles empty-handed; at random switches the magnet
+//!   on, then reaches the cube (IK, from above), picks it, manoeuvres randomly for a random
+//!   number of steps, switches the magnet off (the cube drops) and babbles again.
+
+use causal_arm_kinematics::{ARM_DOF, ArmModel, IkOptions, IkTarget};
+use causal_arm_sim::{Command, SimState};
+use rand::{Rng, SeedableRng, rngs::StdRng};
+use rand_distr::{Distribution, Normal};
+
+/// Settings of experiment 1.
+#[derive(Debug, Clone)]
+pub struct Exp1Config {
+    /// Mean of the joint distribution, rad.
+    pub mean: [f64; ARM_DOF],
+    /// Standard deviation per joint, rad (DESIGN.md: 0.35 matches the paper's ablations).
+    pub sigma: f64,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Default for Exp1Config {
+    fn default() -> Self {
+        Self {
+            mean: [0.0; ARM_DOF],
+            sigma: 0.35,
+            seed: 0,
+        }
+    }
+}
+
+/// Random joint configurations (experiment 1).
+pub struct Exp1Babbler {
+    rng: StdRng,
+    normal: Normal<f64>,
+    mean: [f64; ARM_DOF],
+    lower: [f64; ARM_DOF],
+    upper: [f64; ARM_DOF],
+}
+
+fn limits_of(model: &ArmModel) -> ([f64; ARM_DOF], [f64; ARM_DOF]) {
+    let l = model.limits();
+    (
+        std::array::from_fn(|i| l[i].lower),
+        std::array::from_fn(|i| l[i].upper),
+    )
+}
+
+impl Exp1Babbler {
+    /// A babbler for `model` (limits) with `config`.
+    pub fn new(model: &ArmModel, config: &Exp1Config) -> Result<Self, String> {
+        if !(config.sigma.is_finite() && config.sigma >= 0.0) {
+            return Err(format!(
+                "sigma must be a finite non-negative number of rad, got {}",
+                config.sigma
+            ));
+        }
+        let normal = Normal::new(0.0, config.sigma).map_err(|e| {
+            format!(
+                "sigma must be a finite non-negative number, got {}: {e}",
+                config.sigma
+            )
+        })?;
+        let (lower, upper) = limits_of(model);
+        Ok(Self {
+            rng: StdRng::seed_from_u64(config.seed),
+            normal,
+            mean: config.mean,
+            lower,
+            upper,
+        })
+    }
+
+    /// The next command.
+    pub fn next(&mut self, _state: &SimState) -> Command {
+        let joint_targets = std::array::from_fn(|i| {
+            (self.mean[i] + self.normal.sample(&mut self.rng)).clamp(self.lower[i], self.upper[i])
+        });
+        Command {
+            joint_targets,
+            magnet: 0,
+        }
+    }
+}
+
+/// Settings of experiment 2.
+#[derive(Debug, Clone)]
+pub struct Exp2Config {
+    /// Probability per step of switching the magnet on while babbling empty-handed.
+    pub switch_on_probability: f64,
+    /// Probability per step of a spurious "off" command while babbling (magnet already off).
+    pub spurious_off_probability: f64,
+    /// Spread of the empty-handed babbling around the current configuration, rad.
+    pub babble_sigma: f64,
+    /// Spread of the manoeuvres while holding, rad.
+    pub manoeuvre_sigma: f64,
+    /// Manoeuvre duration range, steps.
+    pub manoeuvre_steps: (u32, u32),
+    /// Minimum babbling duration before the magnet may switch on again, steps.
+    pub min_babble_steps: u32,
+    /// Give up reaching after this many steps.
+    pub reach_timeout_steps: u32,
+    /// Height above the cube centre of the approach pose, m.
+    pub approach_height: f64,
+    /// Lowest height of ef above the table top while babbling or manoeuvring, m.
+    pub min_clearance: f64,
+    /// Table top height, m (from the simulator configuration).
+    pub table_top_z: f64,
+    /// Cube edge length, m.
+    pub cube_size: f64,
+    /// Seed.
+    pub seed: u64,
+}
+
+impl Default for Exp2Config {
+    fn default() -> Self {
+        Self {
+            switch_on_probability: 0.05,
+            spurious_off_probability: 0.02,
+            babble_sigma: 0.15,
+            manoeuvre_sigma: 0.1,
+            manoeuvre_steps: (20, 80),
+            min_babble_steps: 10,
+            reach_timeout_steps: 80,
+            approach_height: 0.12,
+            min_clearance: 0.06,
+            table_top_z: 0.20,
+            cube_size: 0.05,
+            seed: 0,
+        }
+    }
+}
+
+/// Where the exp 2 babbler is in its cycle.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Phase {
+    /// Empty-handed babbling, for at least the given number of further steps.
+    Babble { min_remaining: u32 },
+    /// Moving above the cube with the magnet on.
+    Approach { steps: u32 },
+    /// Descending onto the cube until it is held.
+    Descend { steps: u32 },
+    /// Random moves while holding, for the given number of further steps.
+    Manoeuvre { remaining: u32 },
+}
+
+/// Magnet-driven babbling (experiment 2).
+pub struct Exp2Babbler {
+    config: Exp2Config,
+    model: ArmModel,
+    rng: StdRng,
+    lower: [f64; ARM_DOF],
+    upper: [f64; ARM_DOF],
+    phase: Phase,
+    ik_seed: u64,
+}
+
+impl Exp2Babbler {
+    /// A babbler for `model` with `config`.
+    pub fn new(model: &ArmModel, config: Exp2Config) -> Result<Self, String> {
+        if !(0.0..=1.0).contains(&config.switch_on_probability) {
+            return Err(format!(
+                "switch_on_probability must be in [0, 1], got {}",
+                config.switch_on_probability
+            ));
+        }
+        if config.manoeuvre_steps.0 == 0 || config.manoeuvre_steps.0 > config.manoeuvre_steps.1 {
+            return Err(format!(
+                "manoeuvre_steps must be 1 <= min <= max, got {:?}",
+                config.manoeuvre_steps
+            ));
+        }
+        let (lower, upper) = limits_of(model);
+        Ok(Self {
+            rng: StdRng::seed_from_u64(config.seed),
+            phase: Phase::Babble {
+                min_remaining: config.min_babble_steps,
+            },
+            config,
+            model: model.clone(),
+            lower,
+            upper,
+            ik_seed: 0,
+        })
+    }
+
+    /// The current phase (for logs and tests).
+    pub fn phase(&self) -> &Phase {
+        &self.phase
+    }
+
+    /// Starts a new episode (the simulator reset the arm and cube).
+    pub fn reset(&mut self) {
+        self.phase = Phase::Babble {
+            min_remaining: self.config.min_babble_steps,
+        };
+    }
+
+    /// A random configuration near `q` whose ef stays above the table.
+    fn random_near(&mut self, q: &[f64; ARM_DOF], sigma: f64) -> [f64; ARM_DOF] {
+        let normal = Normal::new(0.0, sigma.max(1e-9)).expect("positive sigma");
+        let floor = self.config.table_top_z + self.config.min_clearance;
+        for _ in 0..20 {
+            let candidate: [f64; ARM_DOF] = std::array::from_fn(|i| {
+                (q[i] + normal.sample(&mut self.rng)).clamp(self.lower[i], self.upper[i])
+            });
+            if self
+                .model
+                .ef_pose(&candidate)
+                .map(|p| p.translation.z >= floor)
+                .unwrap_or(false)
+            {
+                return candidate;
+            }
+        }
+        // No safe random move found: stay where we are.
+        *q
+    }
+
+    fn ik(&mut self, q: &[f64; ARM_DOF], target: IkTarget) -> Option<[f64; ARM_DOF]> {
+        self.ik_seed += 1;
+        let options = IkOptions {
+            initial: Some(q.to_vec()),
+            seed: self.ik_seed,
+            max_attempts: 5,
+            tolerance_m: 1e-3,
+            tolerance_rad: 2e-2,
+            ..IkOptions::default()
+        };
+        self.model
+            .inverse(&target, &options)
+            .ok()
+            .map(|s| s.joints.try_into().expect("7 joints"))
+    }
+
+    /// The next command for `state`.
+    pub fn next(&mut self, state: &SimState) -> Command {
+        let q = state.joint_positions;
+        let cube = state.cube_pose.translation.vector;
+        let half = self.config.cube_size / 2.0;
+        match self.phase.clone() {
+            Phase::Babble { min_remaining } => {
+                let switch_on =
+                    min_remaining == 0 && self.rng.random_bool(self.config.switch_on_probability);
+                let spurious_off = self.rng.random_bool(self.config.spurious_off_probability);
+                let targets = self.random_near(&q, self.config.babble_sigma);
+                if switch_on {
+                    self.phase = Phase::Approach { steps: 0 };
+                    return Command {
+                        joint_targets: q,
+                        magnet: 1,
+                    };
+                }
+                self.phase = Phase::Babble {
+                    min_remaining: min_remaining.saturating_sub(1),
+                };
+                Command {
+                    joint_targets: targets,
+                    magnet: if spurious_off { -1 } else { 0 },
+                }
+            }
+            Phase::Approach { steps } => {
+                let above = IkTarget::pointing_down(
+                    cube.x,
+                    cube.y,
+                    cube.z + half + self.config.approach_height,
+                );
+                let Some(targets) = self.ik(&q, above) else {
+                    return self.give_up(&q);
+                };
+                let close = (state.ef_pose.translation.vector
+                    - nalgebra::Vector3::new(
+                        cube.x,
+                        cube.y,
+                        cube.z + half + self.config.approach_height,
+                    ))
+                .norm()
+                    < 0.01;
+                self.phase = if close {
+                    Phase::Descend { steps: steps + 1 }
+                } else {
+                    Phase::Approach { steps: steps + 1 }
+                };
+                if steps >= self.config.reach_timeout_steps {
+                    return self.give_up(&q);
+                }
+                Command {
+                    joint_targets: targets,
+                    magnet: 0,
+                }
+            }
+            Phase::Descend { steps } => {
+                if state.holding {
+                    let (lo, hi) = self.config.manoeuvre_steps;
+                    let remaining = self.rng.random_range(lo..=hi);
+                    self.phase = Phase::Manoeuvre { remaining };
+                    let lift = self.ik(
+                        &q,
+                        IkTarget::pointing_down(
+                            cube.x,
+                            cube.y,
+                            cube.z + half + self.config.approach_height,
+                        ),
+                    );
+                    return Command {
+                        joint_targets: lift.unwrap_or(q),
+                        magnet: 0,
+                    };
+                }
+                if steps >= self.config.reach_timeout_steps {
+                    return self.give_up(&q);
+                }
+                let touch = IkTarget::pointing_down(cube.x, cube.y, cube.z + half + 0.005);
+                let Some(targets) = self.ik(&q, touch) else {
+                    return self.give_up(&q);
+                };
+                self.phase = Phase::Descend { steps: steps + 1 };
+                Command {
+                    joint_targets: targets,
+                    magnet: 0,
+                }
+            }
+            Phase::Manoeuvre { remaining } => {
+                if remaining == 0 || !state.holding {
+                    self.phase = Phase::Babble {
+                        min_remaining: self.config.min_babble_steps,
+                    };
+                    return Command {
+                        joint_targets: q,
+                        magnet: -1,
+                    };
+                }
+                self.phase = Phase::Manoeuvre {
+                    remaining: remaining - 1,
+                };
+                let targets = self.random_near(&q, self.config.manoeuvre_sigma);
+                Command {
+                    joint_targets: targets,
+                    magnet: 0,
+                }
+            }
+        }
+    }
+
+    fn give_up(&mut self, q: &[f64; ARM_DOF]) -> Command {
+        self.phase = Phase::Babble {
+            min_remaining: self.config.min_babble_steps,
+        };
+        Command {
+            joint_targets: *q,
+            magnet: -1,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use causal_arm_sim::{SimConfig, Simulator};
+
+    #[test]
+    fn exp1_targets_are_normal_within_limits() {
+        let model = ArmModel::embedded();
+        let mut sim = Simulator::new(SimConfig::default()).unwrap();
+        let mut b = Exp1Babbler::new(
+            &model,
+            &Exp1Config {
+                seed: 1,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let n = 20_000;
+        let mut sum = [0.0; ARM_DOF];
+        let mut sq = [0.0; ARM_DOF];
+        let state = sim.state();
+        for _ in 0..n {
+            let c = b.next(&state);
+            model.check_joints(&c.joint_targets).unwrap();
+            for i in 0..ARM_DOF {
+                sum[i] += c.joint_targets[i];
+                sq[i] += c.joint_targets[i].powi(2);
+            }
+        }
+        for i in 0..ARM_DOF {
+            let mean = sum[i] / n as f64;
+            let sd = (sq[i] / n as f64 - mean * mean).sqrt();
+            assert!(
+                mean.abs() < 0.01 && (sd - 0.35).abs() < 0.01,
+                "joint {i}: mean {mean} sd {sd}"
+            );
+        }
+        let _ = sim.step(&b.next(&state)).unwrap();
+        assert!(
+            Exp1Babbler::new(
+                &model,
+                &Exp1Config {
+                    sigma: -1.0,
+                    ..Default::default()
+                }
+            )
+            .is_err()
+        );
+    }
+
+    #[test]
+    fn exp2_picks_lifts_and_drops_the_cube() {
+        let model = ArmModel::embedded();
+        let mut sim = Simulator::new(SimConfig {
+            seed: 11,
+            ..SimConfig::default()
+        })
+        .unwrap();
+        let mut b = Exp2Babbler::new(
+            &model,
+            Exp2Config {
+                seed: 11,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let table_z = 0.225;
+        let mut state = sim.state();
+        let (mut picks, mut lifted_high, mut drops) = (0, false, 0);
+        let mut was_holding = false;
+        for _ in 0..2000 {
+            let cmd = b.next(&state);
+            state = sim.step(&cmd).unwrap();
+            if state.holding && !was_holding {
+                picks += 1;
+            }
+            if !state.holding && was_holding {
+                drops += 1;
+            }
+            if state.holding && state.cube_pose.translation.z > table_z + 0.05 {
+                lifted_high = true;
+            }
+            // The cube only leaves the table while held (or while falling right after a drop).
+            if !state.holding && !was_holding {
+                let z = state.cube_pose.translation.z;
+                assert!(z < 1.0, "cube flew to {z}");
+            }
+            was_holding = state.holding;
+        }
+        assert!(picks >= 3, "only {picks} picks in 2000 steps");
+        assert!(drops >= 2, "only {drops} drops");
+        assert!(lifted_high, "cube never lifted");
+    }
+}

@@ -28,6 +28,8 @@ use rapier3d::prelude::{
 };
 use thiserror::Error;
 
+pub mod ros;
+
 /// Simulator settings; defaults follow the paper's protocol (PyBullet-like 240 Hz, 10 substeps).
 #[derive(Debug, Clone)]
 pub struct SimConfig {
@@ -389,6 +391,8 @@ impl Simulator {
 
     /// Starts a new episode: arm at home, magnet off, cube at a random spot on the table
     /// with a random yaw and a random colour.
+    /// The sim clock keeps running (the reset takes no sim time; the last state of the
+    /// previous episode is superseded), so stamps never repeat.
     pub fn reset_episode(&mut self) {
         self.episode += 1;
         self.place_episode();

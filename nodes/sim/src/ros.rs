@@ -1,0 +1,244 @@
+//! The simulator's state as the ROS 2 messages it publishes each step.
+//!
+//! Shared by the DDS node and the in-process `generate` path so both write the same
+//! messages with the same values.
+
+use causal_arm_kinematics::ArmModel;
+use causal_arm_msgs::builtin_interfaces::msg::Time;
+use causal_arm_msgs::geometry_msgs::msg::{
+    Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3,
+};
+use causal_arm_msgs::msg::{MagnetState, ObjectColor};
+use causal_arm_msgs::rosgraph_msgs::msg::Clock;
+use causal_arm_msgs::sensor_msgs::msg::JointState;
+use causal_arm_msgs::std_msgs::msg::{ColorRGBA, Header};
+use causal_arm_msgs::tf2_msgs::msg::TFMessage;
+use nalgebra::Isometry3;
+
+use crate::SimState;
+
+/// Topic names of the graph (absolute, as users type them in `ros2 topic echo`).
+pub mod topics {
+    /// `sensor_msgs/msg/JointState`.
+    pub const JOINT_STATES: &str = "/joint_states";
+    /// `geometry_msgs/msg/PoseStamped` of the `ef` frame.
+    pub const EF_POSE: &str = "/end_effector/pose";
+    /// `geometry_msgs/msg/PoseStamped` of the cube.
+    pub const OBJECT_POSE: &str = "/object/pose";
+    /// `causal_arm_msgs/msg/ObjectColor`.
+    pub const OBJECT_COLOR: &str = "/object/color";
+    /// `causal_arm_msgs/msg/MagnetState`.
+    pub const MAGNET_STATE: &str = "/magnet/state";
+    /// `rosgraph_msgs/msg/Clock`.
+    pub const CLOCK: &str = "/clock";
+    /// `tf2_msgs/msg/TFMessage`: world→ef and world→object (arm links come from
+    /// `/joint_states` + `/robot_description` through robot_state_publisher, as usual).
+    pub const TF: &str = "/tf";
+    /// `std_msgs/msg/String`, latched.
+    pub const ROBOT_DESCRIPTION: &str = "/robot_description";
+    /// `causal_arm_msgs/msg/Action` from the babbler.
+    pub const ACTION: &str = "/babbler/action";
+}
+
+/// Frame names used in headers and /tf.
+pub mod frames {
+    /// Fixed world frame (the URDF root).
+    pub const WORLD: &str = "world";
+    /// Tool tip.
+    pub const EF: &str = "ef";
+    /// The cube.
+    pub const OBJECT: &str = "object";
+}
+
+/// All state messages of one step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepMessages {
+    /// `/joint_states`.
+    pub joint_states: JointState,
+    /// `/end_effector/pose`.
+    pub ef_pose: PoseStamped,
+    /// `/object/pose`.
+    pub object_pose: PoseStamped,
+    /// `/object/color`.
+    pub object_color: ObjectColor,
+    /// `/magnet/state`.
+    pub magnet: MagnetState,
+    /// `/clock`.
+    pub clock: Clock,
+    /// `/tf`.
+    pub tf: TFMessage,
+}
+
+/// ROS time from nanoseconds of sim time.
+pub fn time_from_ns(ns: u64) -> Time {
+    Time {
+        sec: (ns / 1_000_000_000) as i32,
+        nanosec: (ns % 1_000_000_000) as u32,
+    }
+}
+
+/// Nanoseconds from a ROS time (negative times clamp to 0).
+pub fn ns_from_time(t: &Time) -> u64 {
+    (t.sec.max(0) as u64) * 1_000_000_000 + t.nanosec as u64
+}
+
+fn header(stamp: &Time, frame: &str) -> Header {
+    Header {
+        stamp: stamp.clone(),
+        frame_id: frame.to_owned(),
+    }
+}
+
+fn pose_of(iso: &Isometry3<f64>) -> Pose {
+    let t = iso.translation.vector;
+    let q = iso.rotation.coords;
+    Pose {
+        position: Point { x: t.x, y: t.y, z: t.z },
+        orientation: Quaternion { x: q.x, y: q.y, z: q.z, w: q.w },
+    }
+}
+
+fn transform(stamp: &Time, child: &str, iso: &Isometry3<f64>) -> TransformStamped {
+    let p = pose_of(iso);
+    TransformStamped {
+        header: header(stamp, frames::WORLD),
+        child_frame_id: child.to_owned(),
+        transform: Transform {
+            translation: Vector3 { x: p.position.x, y: p.position.y, z: p.position.z },
+            rotation: p.orientation,
+        },
+    }
+}
+
+/// The messages the simulator publishes for `state`.
+pub fn step_messages(state: &SimState, model: &ArmModel) -> StepMessages {
+    let stamp = time_from_ns(state.stamp_ns);
+    StepMessages {
+        joint_states: JointState {
+            header: header(&stamp, ""),
+            name: model.joint_names().iter().map(|n| n.to_string()).collect(),
+            position: state.joint_positions.to_vec(),
+            velocity: state.joint_velocities.to_vec(),
+            effort: state.joint_efforts.to_vec(),
+        },
+        ef_pose: PoseStamped { header: header(&stamp, frames::WORLD), pose: pose_of(&state.ef_pose) },
+        object_pose: PoseStamped { header: header(&stamp, frames::WORLD), pose: pose_of(&state.cube_pose) },
+        object_color: ObjectColor {
+            header: header(&stamp, frames::OBJECT),
+            color: ColorRGBA { r: state.cube_rgb[0], g: state.cube_rgb[1], b: state.cube_rgb[2], a: 1.0 },
+        },
+        magnet: MagnetState { header: header(&stamp, ""), on: state.magnet_on, holding: state.holding },
+        clock: Clock { clock: stamp.clone() },
+        tf: TFMessage {
+            transforms: vec![
+                transform(&stamp, frames::EF, &state.ef_pose),
+                transform(&stamp, frames::OBJECT, &state.cube_pose),
+            ],
+        },
+    }
+}
+
+/// Why messages could not be turned back into a [`SimState`].
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("state messages at stamp {stamp_ns} ns: {problem}")]
+pub struct StateFromMessagesError {
+    /// Stamp being assembled.
+    pub stamp_ns: u64,
+    /// What is wrong.
+    pub problem: String,
+}
+
+fn iso_of(pose: &Pose) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        nalgebra::Translation3::new(pose.position.x, pose.position.y, pose.position.z),
+        nalgebra::UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(
+            pose.orientation.w,
+            pose.orientation.x,
+            pose.orientation.y,
+            pose.orientation.z,
+        )),
+    )
+}
+
+fn joints7(values: &[f64], field: &str, stamp_ns: u64) -> Result<[f64; causal_arm_kinematics::ARM_DOF], StateFromMessagesError> {
+    values.try_into().map_err(|_| StateFromMessagesError {
+        stamp_ns,
+        problem: format!("/joint_states {field} has {} values, expected {}", values.len(), causal_arm_kinematics::ARM_DOF),
+    })
+}
+
+/// The inverse of [`step_messages`]: what a subscriber (the babbler node) knows of the
+/// state. `step` and `episode` are the subscriber's own counts.
+pub fn state_from_messages(
+    joint_states: &JointState,
+    ef_pose: &PoseStamped,
+    object_pose: &PoseStamped,
+    object_color: &ObjectColor,
+    magnet: &MagnetState,
+    step: u64,
+    episode: u32,
+) -> Result<SimState, StateFromMessagesError> {
+    let stamp_ns = ns_from_time(&joint_states.header.stamp);
+    for (topic, stamp) in [
+        (topics::EF_POSE, &ef_pose.header.stamp),
+        (topics::OBJECT_POSE, &object_pose.header.stamp),
+        (topics::OBJECT_COLOR, &object_color.header.stamp),
+        (topics::MAGNET_STATE, &magnet.header.stamp),
+    ] {
+        if ns_from_time(stamp) != stamp_ns {
+            return Err(StateFromMessagesError {
+                stamp_ns,
+                problem: format!("{topic} has stamp {} ns", ns_from_time(stamp)),
+            });
+        }
+    }
+    Ok(SimState {
+        stamp_ns,
+        step,
+        episode,
+        joint_positions: joints7(&joint_states.position, "position", stamp_ns)?,
+        joint_velocities: joints7(&joint_states.velocity, "velocity", stamp_ns)?,
+        joint_efforts: joints7(&joint_states.effort, "effort", stamp_ns)?,
+        ef_pose: iso_of(&ef_pose.pose),
+        cube_pose: iso_of(&object_pose.pose),
+        cube_rgb: [object_color.color.r, object_color.color.g, object_color.color.b],
+        magnet_on: magnet.on,
+        holding: magnet.holding,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Command, SimConfig, Simulator};
+
+    #[test]
+    fn messages_round_trip_to_the_same_state() {
+        let mut sim = Simulator::new(SimConfig { seed: 4, ..SimConfig::default() }).unwrap();
+        let state = sim.step(&Command { joint_targets: [0.1, 0.6, 0.0, -1.1, 0.2, 0.7, 0.3], magnet: 1 }).unwrap();
+        let m = step_messages(&state, sim.model());
+        assert_eq!(m.joint_states.name[6], "iiwa_joint_7");
+        assert_eq!(m.clock.clock, time_from_ns(state.stamp_ns));
+        let back = state_from_messages(
+            &m.joint_states, &m.ef_pose, &m.object_pose, &m.object_color, &m.magnet, state.step, state.episode,
+        )
+        .unwrap();
+        assert_eq!(back.joint_positions, state.joint_positions);
+        assert_eq!(back.ef_pose.translation, state.ef_pose.translation);
+        assert_eq!(back.cube_pose.translation, state.cube_pose.translation);
+        assert_eq!(back.cube_rgb, state.cube_rgb);
+        assert_eq!((back.magnet_on, back.holding), (state.magnet_on, state.holding));
+        let mut late = m.magnet.clone();
+        late.header.stamp.nanosec += 1;
+        let err = state_from_messages(&m.joint_states, &m.ef_pose, &m.object_pose, &m.object_color, &late, 0, 0)
+            .unwrap_err();
+        assert!(err.to_string().contains("/magnet/state has stamp"), "{err}");
+    }
+
+    #[test]
+    fn time_conversion_is_exact() {
+        for ns in [0, 1, 999_999_999, 1_000_000_000, 41_666_667, 123_456_789_012] {
+            assert_eq!(ns_from_time(&time_from_ns(ns)), ns);
+        }
+    }
+}

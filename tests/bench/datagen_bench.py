@@ -1,0 +1,83 @@
+#!/usr/bin/env python3
+"""Data-generation speed: ours vs PyBullet on the same babbling loop, side by side.
+
+Runs, in one go on this machine:
+  * `causal-arm generate exp1` (simulator + babbler + bag writing, one process, no DDS)
+  * `causal-arm generate exp2`
+  * a PyBullet script doing the paper's exp1 loop: pybullet_data's kuka_iiwa, random
+    normal joint targets (sigma 0.35, clipped to the limits), POSITION_CONTROL with the
+    URDF forces, 10 substeps at 240 Hz, reading joint states and the end-effector pose
+    each step (no recording, so it is a lower bound on PyBullet's cost).
+Prints a table with steps/s and ratios. Usage:
+  target/pyvenv/bin/python tests/bench/datagen_bench.py [--steps N] [--bin target/release/causal-arm]
+Run it on a quiet machine (nothing else building).
+"""
+
+import argparse
+import pathlib
+import re
+import subprocess
+import tempfile
+import time
+
+import numpy as np
+import pybullet as p
+import pybullet_data
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+LIMITS = np.array([2.967, 2.094, 2.967, 2.094, 2.967, 2.094, 3.054])
+
+
+def pybullet_exp1(steps: int, seed: int = 0) -> float:
+    client = p.connect(p.DIRECT)
+    p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=client)
+    p.setGravity(0, 0, -9.81, physicsClientId=client)
+    p.setTimeStep(1.0 / 240.0, physicsClientId=client)
+    robot = p.loadURDF("kuka_iiwa/model.urdf", useFixedBase=True, physicsClientId=client)
+    joints = list(range(7))
+    forces = [p.getJointInfo(robot, j, physicsClientId=client)[10] or 300.0 for j in joints]
+    rng = np.random.default_rng(seed)
+    start = time.perf_counter()
+    for _ in range(steps):
+        target = np.clip(rng.normal(0.0, 0.35, 7), -LIMITS, LIMITS)
+        p.setJointMotorControlArray(robot, joints, p.POSITION_CONTROL, targetPositions=target.tolist(),
+                                    forces=forces, physicsClientId=client)
+        for _ in range(10):
+            p.stepSimulation(physicsClientId=client)
+        p.getJointStates(robot, joints, physicsClientId=client)
+        p.getLinkState(robot, 6, computeForwardKinematics=True, physicsClientId=client)
+    elapsed = time.perf_counter() - start
+    p.disconnect(client)
+    return steps / elapsed
+
+
+def ours(binary: str, experiment: str, steps: int) -> float:
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp) / "bag"
+        size = ["--steps", str(steps)] if experiment == "exp1" else ["--episodes", str(max(1, steps // 500))]
+        total = steps if experiment == "exp1" else max(1, steps // 500) * 500
+        start = time.perf_counter()
+        subprocess.run([binary, "generate", experiment, *size, "--seed", "1", "--out", str(out)],
+                       check=True, capture_output=True, text=True)
+        elapsed = time.perf_counter() - start
+        return total / elapsed
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--steps", type=int, default=20000)
+    parser.add_argument("--bin", default=str(REPO / "target" / "release" / "causal-arm"))
+    args = parser.parse_args()
+    rows = [
+        ("PyBullet exp1 loop (reference, no recording)", pybullet_exp1(args.steps)),
+        ("causal-arm generate exp1 (in-process, writes bag)", ours(args.bin, "exp1", args.steps)),
+        ("causal-arm generate exp2 (in-process, writes bag)", ours(args.bin, "exp2", args.steps)),
+    ]
+    ref = rows[0][1]
+    print(f"\n{'run':<52} {'steps/s':>10} {'vs PyBullet':>12}")
+    for name, rate in rows:
+        print(f"{name:<52} {rate:>10.0f} {rate / ref:>11.2f}x")
+
+
+if __name__ == "__main__":
+    main()

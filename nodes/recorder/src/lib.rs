@@ -1,0 +1,1 @@
+//! rosbag2-compatible MCAP bags (work in progress).

@@ -1,0 +1,457 @@
+//! Writing bags.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufWriter, Write as _};
+use std::path::{Path, PathBuf};
+
+use causal_arm_msgs::RosMessage;
+use serde::Serialize;
+
+use crate::BagError;
+
+/// Chunk compression.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Compression {
+    /// zstd (rosbag2's default for MCAP).
+    #[default]
+    Zstd,
+    /// lz4.
+    Lz4,
+    /// Uncompressed chunks.
+    None,
+}
+
+/// Writer settings.
+#[derive(Debug, Clone)]
+pub struct BagOptions {
+    /// Chunk compression.
+    pub compression: Compression,
+    /// Target chunk size, bytes (rosbag2's MCAP default).
+    pub chunk_size: u64,
+    /// Replace an existing bag in the directory.
+    pub overwrite: bool,
+}
+
+impl Default for BagOptions {
+    fn default() -> Self {
+        Self {
+            compression: Compression::Zstd,
+            chunk_size: 786_432,
+            overwrite: false,
+        }
+    }
+}
+
+/// The QoS a publisher offered, as rosbag2 (format 9) stores it per topic: a YAML list.
+pub fn offered_qos_yaml(
+    reliable: bool,
+    transient_local: bool,
+    keep_all: bool,
+    depth: u32,
+) -> String {
+    // rmw enum values: history 1 keep_last / 2 keep_all; written by name in format 9.
+    format!(
+        "- history: {}\n  depth: {}\n  reliability: {}\n  durability: {}\n  deadline:\n    sec: 9223372036\n    nsec: 854775807\n  lifespan:\n    sec: 9223372036\n    nsec: 854775807\n  liveliness: automatic\n  liveliness_lease_duration:\n    sec: 9223372036\n    nsec: 854775807\n  avoid_ros_namespace_conventions: false",
+        if keep_all { "keep_all" } else { "keep_last" },
+        depth,
+        if reliable { "reliable" } else { "best_effort" },
+        if transient_local {
+            "transient_local"
+        } else {
+            "volatile"
+        },
+    )
+}
+
+struct TopicEntry {
+    channel_id: u16,
+    ros_type: &'static str,
+    qos_yaml: String,
+    count: u64,
+    sequence: u32,
+}
+
+/// What a finished bag holds.
+#[derive(Debug, Clone)]
+pub struct BagSummary {
+    /// Bag directory.
+    pub dir: PathBuf,
+    /// The MCAP file.
+    pub mcap_path: PathBuf,
+    /// Messages written.
+    pub message_count: u64,
+    /// Messages per topic.
+    pub per_topic: BTreeMap<String, u64>,
+    /// Last minus first log time, ns.
+    pub duration_ns: u64,
+}
+
+/// Writes one bag; finish it with [`BagWriter::finish`] (dropping it finishes it too).
+pub struct BagWriter {
+    dir: PathBuf,
+    mcap_path: PathBuf,
+    writer: Option<mcap::Writer<BufWriter<File>>>,
+    topics: BTreeMap<String, TopicEntry>,
+    first_ns: Option<u64>,
+    last_ns: u64,
+}
+
+fn io<'a>(path: &'a Path, action: &'static str) -> impl FnOnce(std::io::Error) -> BagError + 'a {
+    move |error| BagError::Io {
+        path: path.to_owned(),
+        action,
+        error,
+    }
+}
+
+/// Whether `dir` already holds a bag, and what shows it.
+pub(crate) fn existing_bag(dir: &Path) -> Option<String> {
+    let entries = std::fs::read_dir(dir).ok()?;
+    let names: Vec<String> = entries
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+        .filter(|n| n == "metadata.yaml" || n.ends_with(".mcap"))
+        .collect();
+    (!names.is_empty()).then(|| names.join(", "))
+}
+
+impl BagWriter {
+    /// Creates `dir` (or reuses an empty one) and starts `<dir name>_0.mcap` in it.
+    pub fn create(dir: &Path, options: BagOptions) -> Result<Self, BagError> {
+        if let Some(found) = existing_bag(dir) {
+            if !options.overwrite {
+                return Err(BagError::Exists {
+                    dir: dir.to_owned(),
+                    found,
+                });
+            }
+            for entry in std::fs::read_dir(dir)
+                .map_err(io(dir, "listing"))?
+                .flatten()
+            {
+                let name = entry.file_name().to_string_lossy().into_owned();
+                if name == "metadata.yaml" || name.ends_with(".mcap") {
+                    std::fs::remove_file(entry.path())
+                        .map_err(io(&entry.path(), "removing old bag file"))?;
+                }
+            }
+        }
+        std::fs::create_dir_all(dir).map_err(io(dir, "creating the bag directory"))?;
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .filter(|n| !n.is_empty() && n != "." && n != "..")
+            .unwrap_or_else(|| "bag".to_owned());
+        let mcap_path = dir.join(format!("{name}_0.mcap"));
+        let file = File::create(&mcap_path).map_err(io(&mcap_path, "creating"))?;
+        let compression = match options.compression {
+            Compression::Zstd => Some(mcap::Compression::Zstd),
+            Compression::Lz4 => Some(mcap::Compression::Lz4),
+            Compression::None => None,
+        };
+        let writer = mcap::WriteOptions::new()
+            .profile("ros2")
+            .library(concat!("causal-arm ", env!("CARGO_PKG_VERSION")))
+            .compression(compression)
+            .chunk_size(Some(options.chunk_size))
+            .create(BufWriter::with_capacity(1 << 20, file))
+            .map_err(|e| BagError::Mcap {
+                path: mcap_path.clone(),
+                message: e.to_string(),
+            })?;
+        Ok(Self {
+            dir: dir.to_owned(),
+            mcap_path,
+            writer: Some(writer),
+            topics: BTreeMap::new(),
+            first_ns: None,
+            last_ns: 0,
+        })
+    }
+
+    fn mcap_err(&self, e: mcap::McapError) -> BagError {
+        BagError::Mcap {
+            path: self.mcap_path.clone(),
+            message: e.to_string(),
+        }
+    }
+
+    /// Registers `topic` with type `M` and the publisher's offered QoS (see [`offered_qos_yaml`]).
+    pub fn add_topic<M: RosMessage>(
+        &mut self,
+        topic: &str,
+        offered_qos_yaml: &str,
+    ) -> Result<(), BagError> {
+        if let Some(existing) = self.topics.get(topic) {
+            if existing.ros_type == M::ROS_TYPE {
+                return Ok(());
+            }
+            return Err(BagError::Topic {
+                path: self.mcap_path.clone(),
+                topic: topic.to_owned(),
+                problem: format!(
+                    "registered as {}, now as {}",
+                    existing.ros_type,
+                    M::ROS_TYPE
+                ),
+            });
+        }
+        let writer = self.writer.as_mut().expect("writer lives until finish");
+        let schema = writer
+            .add_schema(M::ROS_TYPE, "ros2msg", M::definition().as_bytes())
+            .map_err(|e| BagError::Mcap {
+                path: self.mcap_path.clone(),
+                message: e.to_string(),
+            })?;
+        let metadata = BTreeMap::from([
+            (
+                "offered_qos_profiles".to_owned(),
+                offered_qos_yaml.to_owned(),
+            ),
+            ("topic_type_hash".to_owned(), String::new()),
+        ]);
+        let channel_id = writer
+            .add_channel(schema, topic, "cdr", &metadata)
+            .map_err(|e| BagError::Mcap {
+                path: self.mcap_path.clone(),
+                message: e.to_string(),
+            })?;
+        self.topics.insert(
+            topic.to_owned(),
+            TopicEntry {
+                channel_id,
+                ros_type: M::ROS_TYPE,
+                qos_yaml: offered_qos_yaml.to_owned(),
+                count: 0,
+                sequence: 0,
+            },
+        );
+        Ok(())
+    }
+
+    /// Writes `msg` on `topic` at `stamp_ns` (log and publish time).
+    pub fn write<M: RosMessage>(
+        &mut self,
+        topic: &str,
+        stamp_ns: u64,
+        msg: &M,
+    ) -> Result<(), BagError> {
+        if let Some(t) = self.topics.get(topic)
+            && t.ros_type != M::ROS_TYPE
+        {
+            return Err(BagError::Topic {
+                path: self.mcap_path.clone(),
+                topic: topic.to_owned(),
+                problem: format!("is {}, not {}", t.ros_type, M::ROS_TYPE),
+            });
+        }
+        let data = causal_arm_msgs::to_cdr(msg).map_err(|e| BagError::Topic {
+            path: self.mcap_path.clone(),
+            topic: topic.to_owned(),
+            problem: e.to_string(),
+        })?;
+        self.write_cdr(topic, stamp_ns, stamp_ns, &data)
+    }
+
+    /// Writes an already serialized message on a registered topic.
+    pub fn write_cdr(
+        &mut self,
+        topic: &str,
+        log_time_ns: u64,
+        publish_time_ns: u64,
+        cdr: &[u8],
+    ) -> Result<(), BagError> {
+        let Some(entry) = self.topics.get_mut(topic) else {
+            return Err(BagError::Topic {
+                path: self.mcap_path.clone(),
+                topic: topic.to_owned(),
+                problem: "written before add_topic".to_owned(),
+            });
+        };
+        let header = mcap::records::MessageHeader {
+            channel_id: entry.channel_id,
+            sequence: entry.sequence,
+            log_time: log_time_ns,
+            publish_time: publish_time_ns,
+        };
+        entry.sequence = entry.sequence.wrapping_add(1);
+        entry.count += 1;
+        self.first_ns = Some(self.first_ns.map_or(log_time_ns, |f| f.min(log_time_ns)));
+        self.last_ns = self.last_ns.max(log_time_ns);
+        let result = self
+            .writer
+            .as_mut()
+            .expect("writer lives until finish")
+            .write_to_known_channel(&header, cdr);
+        result.map_err(|e| self.mcap_err(e))
+    }
+
+    /// Messages written on `topic` so far.
+    pub fn message_count(&self, topic: &str) -> u64 {
+        self.topics.get(topic).map_or(0, |t| t.count)
+    }
+
+    /// Finalizes the MCAP file (summary, indexes) and writes `metadata.yaml`.
+    pub fn finish(mut self) -> Result<BagSummary, BagError> {
+        self.finish_in_place()
+    }
+
+    fn finish_in_place(&mut self) -> Result<BagSummary, BagError> {
+        let Some(mut writer) = self.writer.take() else {
+            return Err(BagError::Metadata {
+                path: self.dir.clone(),
+                problem: "bag already finished".to_owned(),
+            });
+        };
+        writer.finish().map_err(|e| self.mcap_err(e))?;
+        let mut inner = writer.into_inner();
+        inner.flush().map_err(io(&self.mcap_path, "flushing"))?;
+        inner
+            .get_ref()
+            .sync_all()
+            .map_err(io(&self.mcap_path, "syncing"))?;
+        let summary = BagSummary {
+            dir: self.dir.clone(),
+            mcap_path: self.mcap_path.clone(),
+            message_count: self.topics.values().map(|t| t.count).sum(),
+            per_topic: self
+                .topics
+                .iter()
+                .map(|(k, t)| (k.clone(), t.count))
+                .collect(),
+            duration_ns: self.last_ns.saturating_sub(self.first_ns.unwrap_or(0)),
+        };
+        self.write_metadata(&summary)?;
+        Ok(summary)
+    }
+
+    fn write_metadata(&self, summary: &BagSummary) -> Result<(), BagError> {
+        let start = self.first_ns.unwrap_or(0);
+        let file_name = self
+            .mcap_path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let topics = self
+            .topics
+            .iter()
+            .map(|(name, t)| {
+                let qos: serde_norway::Value = serde_norway::from_str(&t.qos_yaml)
+                    .unwrap_or(serde_norway::Value::Sequence(vec![]));
+                TopicWithCount {
+                    topic_metadata: TopicMetadata {
+                        name: name.clone(),
+                        r#type: t.ros_type.to_owned(),
+                        serialization_format: "cdr".to_owned(),
+                        offered_qos_profiles: qos,
+                        type_description_hash: String::new(),
+                    },
+                    message_count: t.count,
+                }
+            })
+            .collect();
+        let info = BagfileInformation {
+            version: 9,
+            storage_identifier: "mcap".to_owned(),
+            duration: Nanoseconds {
+                nanoseconds: summary.duration_ns,
+            },
+            starting_time: NanosecondsSinceEpoch {
+                nanoseconds_since_epoch: start,
+            },
+            message_count: summary.message_count,
+            topics_with_message_count: topics,
+            compression_format: String::new(),
+            compression_mode: String::new(),
+            relative_file_paths: vec![file_name.clone()],
+            files: vec![FileInformation {
+                path: file_name,
+                starting_time: NanosecondsSinceEpoch {
+                    nanoseconds_since_epoch: start,
+                },
+                duration: Nanoseconds {
+                    nanoseconds: summary.duration_ns,
+                },
+                message_count: summary.message_count,
+            }],
+            custom_data: BTreeMap::new(),
+            ros_distro: "jazzy".to_owned(),
+        };
+        let text = serde_norway::to_string(&Metadata {
+            rosbag2_bagfile_information: info,
+        })
+        .map_err(|e| BagError::Metadata {
+            path: self.dir.join("metadata.yaml"),
+            problem: e.to_string(),
+        })?;
+        let tmp = self.dir.join(".metadata.yaml.tmp");
+        let final_path = self.dir.join("metadata.yaml");
+        std::fs::write(&tmp, text).map_err(io(&tmp, "writing"))?;
+        std::fs::rename(&tmp, &final_path).map_err(io(&final_path, "renaming into place"))?;
+        Ok(())
+    }
+}
+
+impl Drop for BagWriter {
+    fn drop(&mut self) {
+        if self.writer.is_some()
+            && let Err(e) = self.finish_in_place()
+        {
+            tracing::error!("finalizing {} on drop failed: {e}", self.dir.display());
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct Metadata {
+    rosbag2_bagfile_information: BagfileInformation,
+}
+
+#[derive(Serialize)]
+struct BagfileInformation {
+    version: u32,
+    storage_identifier: String,
+    duration: Nanoseconds,
+    starting_time: NanosecondsSinceEpoch,
+    message_count: u64,
+    topics_with_message_count: Vec<TopicWithCount>,
+    compression_format: String,
+    compression_mode: String,
+    relative_file_paths: Vec<String>,
+    files: Vec<FileInformation>,
+    custom_data: BTreeMap<String, String>,
+    ros_distro: String,
+}
+
+#[derive(Serialize)]
+struct Nanoseconds {
+    nanoseconds: u64,
+}
+
+#[derive(Serialize)]
+struct NanosecondsSinceEpoch {
+    nanoseconds_since_epoch: u64,
+}
+
+#[derive(Serialize)]
+struct TopicWithCount {
+    topic_metadata: TopicMetadata,
+    message_count: u64,
+}
+
+#[derive(Serialize)]
+struct TopicMetadata {
+    name: String,
+    r#type: String,
+    serialization_format: String,
+    offered_qos_profiles: serde_norway::Value,
+    type_description_hash: String,
+}
+
+#[derive(Serialize)]
+struct FileInformation {
+    path: String,
+    starting_time: NanosecondsSinceEpoch,
+    duration: Nanoseconds,
+    message_count: u64,
+}

@@ -1,6 +1,8 @@
 //! `causal-arm`: one entry point for every tool and node of the project.
 
+mod generate_cmd;
 mod kinematics_cmd;
+mod launch_cmd;
 mod topic_cmd;
 
 use causal_arm_node::RosArgs;
@@ -24,6 +26,10 @@ enum Command {
     Fk(kinematics_cmd::FkArgs),
     /// Inverse kinematics (damped least squares): joints that put `ef` at a position.
     Ik(kinematics_cmd::IkArgs),
+    /// Run an experiment in one process (no DDS) and write its dataset bag.
+    Generate(generate_cmd::GenerateArgs),
+    /// Start the simulator, babbler and recorder nodes over DDS and record the bag.
+    Launch(generate_cmd::GenerateArgs),
     /// Publish or echo any known message type as JSON (like `ros2 topic`).
     Topic(topic_cmd::TopicArgs),
 }
@@ -41,6 +47,8 @@ fn main() -> std::process::ExitCode {
     let result = match &cli.command {
         Command::Fk(args) => kinematics_cmd::run_fk(args),
         Command::Ik(args) => kinematics_cmd::run_ik(args),
+        Command::Generate(args) => generate_cmd::run(args),
+        Command::Launch(args) => launch_cmd::run(args, &ros_args),
         Command::Topic(args) => topic_cmd::run(args, &ros_args),
     };
     match result {

@@ -139,24 +139,9 @@ impl MessageTypeVisitor for PubVisitor<'_> {
         let mut node = RosNode::new("causal_arm_topic_pub", &[], self.ros_args)?;
         let publisher = node.publisher::<M>(&a.topic, qos)?;
         if a.wait_subscribers > 0 {
-            let start = Instant::now();
-            let matched = smol::block_on(smol::future::or(
-                async {
-                    publisher.wait_for_subscription(node.inner()).await;
-                    true
-                },
-                async {
-                    smol::Timer::after(timeout).await;
-                    false
-                },
-            ));
-            while matched && publisher.get_subscription_count(node.inner()) < a.wait_subscribers {
-                if start.elapsed() > timeout {
-                    break;
-                }
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            if !matched || start.elapsed() > timeout {
+            let never = std::sync::atomic::AtomicBool::new(false);
+            let settle = positive_seconds(a.settle, "--settle")?;
+            if !node.wait_for_subscribers(&publisher, a.wait_subscribers, timeout, settle, &never) {
                 bail!(
                     "{} subscriber(s) of {} did not appear within {:.1} s",
                     a.wait_subscribers,
@@ -164,7 +149,6 @@ impl MessageTypeVisitor for PubVisitor<'_> {
                     a.timeout
                 );
             }
-            std::thread::sleep(positive_seconds(a.settle, "--settle")?);
         }
         for i in 0..a.count {
             publisher

@@ -115,6 +115,9 @@ pub struct Exp2Config {
     pub table_top_z: f64,
     /// Cube edge length, m.
     pub cube_size: f64,
+    /// While holding, ef stays above this table area (centre x, y and half extents, m), so
+    /// a released cube lands on the table.
+    pub table_area: ([f64; 2], [f64; 2]),
     /// Seed.
     pub seed: u64,
 }
@@ -133,6 +136,7 @@ impl Default for Exp2Config {
             min_clearance: 0.06,
             table_top_z: 0.20,
             cube_size: 0.05,
+            table_area: ([0.60, 0.0], [0.25, 0.35]),
             seed: 0,
         }
     }
@@ -203,20 +207,21 @@ impl Exp2Babbler {
         };
     }
 
-    /// A random configuration near `q` whose ef stays above the table.
-    fn random_near(&mut self, q: &[f64; ARM_DOF], sigma: f64) -> [f64; ARM_DOF] {
+    /// A random configuration near `q` whose ef stays above the table top (and, when
+    /// `over_table`, above the table area).
+    fn random_near(&mut self, q: &[f64; ARM_DOF], sigma: f64, over_table: bool) -> [f64; ARM_DOF] {
         let normal = Normal::new(0.0, sigma.max(1e-9)).expect("positive sigma");
         let floor = self.config.table_top_z + self.config.min_clearance;
         for _ in 0..20 {
             let candidate: [f64; ARM_DOF] = std::array::from_fn(|i| {
                 (q[i] + normal.sample(&mut self.rng)).clamp(self.lower[i], self.upper[i])
             });
-            if self
-                .model
-                .ef_pose(&candidate)
-                .map(|p| p.translation.z >= floor)
-                .unwrap_or(false)
-            {
+            let ([cx, cy], [hx, hy]) = self.config.table_area;
+            let ok = self.model.ef_pose(&candidate).is_ok_and(|p| {
+                let t = p.translation;
+                t.z >= floor && (!over_table || ((t.x - cx).abs() <= hx && (t.y - cy).abs() <= hy))
+            });
+            if ok {
                 return candidate;
             }
         }
@@ -250,7 +255,7 @@ impl Exp2Babbler {
                 let switch_on =
                     min_remaining == 0 && self.rng.random_bool(self.config.switch_on_probability);
                 let spurious_off = self.rng.random_bool(self.config.spurious_off_probability);
-                let targets = self.random_near(&q, self.config.babble_sigma);
+                let targets = self.random_near(&q, self.config.babble_sigma, false);
                 if switch_on {
                     self.phase = Phase::Approach { steps: 0 };
                     return Command {
@@ -340,7 +345,7 @@ impl Exp2Babbler {
                 self.phase = Phase::Manoeuvre {
                     remaining: remaining - 1,
                 };
-                let targets = self.random_near(&q, self.config.manoeuvre_sigma);
+                let targets = self.random_near(&q, self.config.manoeuvre_sigma, true);
                 Command {
                     joint_targets: targets,
                     magnet: 0,

@@ -163,6 +163,48 @@ impl RosNode {
         self.node_ref().time_now()
     }
 
+    /// Waits until `publisher` has `count` matched subscriptions, then `settle` more so the
+    /// subscribers' side of discovery completes too (a reader drops samples from writers
+    /// it has not matched yet). Returns false on timeout or when `stop` is set.
+    pub fn wait_for_subscribers<M: RosMessage>(
+        &mut self,
+        publisher: &Publisher<M>,
+        count: usize,
+        timeout: std::time::Duration,
+        settle: std::time::Duration,
+        stop: &std::sync::atomic::AtomicBool,
+    ) -> bool {
+        use std::sync::atomic::Ordering;
+        let start = std::time::Instant::now();
+        let gave_up = || stop.load(Ordering::SeqCst) || start.elapsed() > timeout;
+        let node = self.node_ref();
+        // The first match goes through ros2-client's own wait, which also registers the
+        // publisher with the node's graph tracking (counting before that logs errors).
+        let matched = smol::block_on(smol::future::or(
+            async {
+                publisher.wait_for_subscription(node).await;
+                true
+            },
+            async {
+                while !gave_up() {
+                    smol::Timer::after(std::time::Duration::from_millis(20)).await;
+                }
+                false
+            },
+        ));
+        if !matched {
+            return false;
+        }
+        while publisher.get_subscription_count(node) < count {
+            if gave_up() {
+                return false;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        std::thread::sleep(settle);
+        true
+    }
+
     /// Applies `-r from:=to` remappings to a topic or service name.
     pub fn resolve_name(&self, name: &str) -> String {
         self.remaps

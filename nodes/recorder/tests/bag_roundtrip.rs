@@ -11,14 +11,18 @@ fn sample(i: u64) -> (JointState, PoseStamped, Action) {
     js.header.stamp.nanosec = (i % 10) as u32 * 100_000_000;
     js.name = (1..=7).map(|j| format!("iiwa_joint_{j}")).collect();
     js.position = (0..7).map(|j| i as f64 * 0.001 + j as f64).collect();
-    let mut pose = PoseStamped::default();
-    pose.header = js.header.clone();
+    let mut pose = PoseStamped {
+        header: js.header.clone(),
+        ..Default::default()
+    };
     pose.pose.position.x = i as f64;
-    let mut action = Action::default();
-    action.header = js.header.clone();
-    action.step = i as u32;
-    action.joint_targets = vec![0.1 * i as f64; 7];
-    action.magnet = (i % 3) as i8 - 1;
+    let action = Action {
+        header: js.header.clone(),
+        step: i as u32,
+        joint_targets: vec![0.1 * i as f64; 7],
+        magnet: (i % 3) as i8 - 1,
+        ..Default::default()
+    };
     (js, pose, action)
 }
 

@@ -93,8 +93,17 @@ fn pose_of(iso: &Isometry3<f64>) -> Pose {
     let t = iso.translation.vector;
     let q = iso.rotation.coords;
     Pose {
-        position: Point { x: t.x, y: t.y, z: t.z },
-        orientation: Quaternion { x: q.x, y: q.y, z: q.z, w: q.w },
+        position: Point {
+            x: t.x,
+            y: t.y,
+            z: t.z,
+        },
+        orientation: Quaternion {
+            x: q.x,
+            y: q.y,
+            z: q.z,
+            w: q.w,
+        },
     }
 }
 
@@ -104,7 +113,11 @@ fn transform(stamp: &Time, child: &str, iso: &Isometry3<f64>) -> TransformStampe
         header: header(stamp, frames::WORLD),
         child_frame_id: child.to_owned(),
         transform: Transform {
-            translation: Vector3 { x: p.position.x, y: p.position.y, z: p.position.z },
+            translation: Vector3 {
+                x: p.position.x,
+                y: p.position.y,
+                z: p.position.z,
+            },
             rotation: p.orientation,
         },
     }
@@ -121,14 +134,31 @@ pub fn step_messages(state: &SimState, model: &ArmModel) -> StepMessages {
             velocity: state.joint_velocities.to_vec(),
             effort: state.joint_efforts.to_vec(),
         },
-        ef_pose: PoseStamped { header: header(&stamp, frames::WORLD), pose: pose_of(&state.ef_pose) },
-        object_pose: PoseStamped { header: header(&stamp, frames::WORLD), pose: pose_of(&state.cube_pose) },
+        ef_pose: PoseStamped {
+            header: header(&stamp, frames::WORLD),
+            pose: pose_of(&state.ef_pose),
+        },
+        object_pose: PoseStamped {
+            header: header(&stamp, frames::WORLD),
+            pose: pose_of(&state.cube_pose),
+        },
         object_color: ObjectColor {
             header: header(&stamp, frames::OBJECT),
-            color: ColorRGBA { r: state.cube_rgb[0], g: state.cube_rgb[1], b: state.cube_rgb[2], a: 1.0 },
+            color: ColorRGBA {
+                r: state.cube_rgb[0],
+                g: state.cube_rgb[1],
+                b: state.cube_rgb[2],
+                a: 1.0,
+            },
         },
-        magnet: MagnetState { header: header(&stamp, ""), on: state.magnet_on, holding: state.holding },
-        clock: Clock { clock: stamp.clone() },
+        magnet: MagnetState {
+            header: header(&stamp, ""),
+            on: state.magnet_on,
+            holding: state.holding,
+        },
+        clock: Clock {
+            clock: stamp.clone(),
+        },
         tf: TFMessage {
             transforms: vec![
                 transform(&stamp, frames::EF, &state.ef_pose),
@@ -160,10 +190,18 @@ fn iso_of(pose: &Pose) -> Isometry3<f64> {
     )
 }
 
-fn joints7(values: &[f64], field: &str, stamp_ns: u64) -> Result<[f64; causal_arm_kinematics::ARM_DOF], StateFromMessagesError> {
+fn joints7(
+    values: &[f64],
+    field: &str,
+    stamp_ns: u64,
+) -> Result<[f64; causal_arm_kinematics::ARM_DOF], StateFromMessagesError> {
     values.try_into().map_err(|_| StateFromMessagesError {
         stamp_ns,
-        problem: format!("/joint_states {field} has {} values, expected {}", values.len(), causal_arm_kinematics::ARM_DOF),
+        problem: format!(
+            "/joint_states {field} has {} values, expected {}",
+            values.len(),
+            causal_arm_kinematics::ARM_DOF
+        ),
     })
 }
 
@@ -201,7 +239,11 @@ pub fn state_from_messages(
         joint_efforts: joints7(&joint_states.effort, "effort", stamp_ns)?,
         ef_pose: iso_of(&ef_pose.pose),
         cube_pose: iso_of(&object_pose.pose),
-        cube_rgb: [object_color.color.r, object_color.color.g, object_color.color.b],
+        cube_rgb: [
+            object_color.color.r,
+            object_color.color.g,
+            object_color.color.b,
+        ],
         magnet_on: magnet.on,
         holding: magnet.holding,
     })
@@ -214,30 +256,63 @@ mod tests {
 
     #[test]
     fn messages_round_trip_to_the_same_state() {
-        let mut sim = Simulator::new(SimConfig { seed: 4, ..SimConfig::default() }).unwrap();
-        let state = sim.step(&Command { joint_targets: [0.1, 0.6, 0.0, -1.1, 0.2, 0.7, 0.3], magnet: 1 }).unwrap();
+        let mut sim = Simulator::new(SimConfig {
+            seed: 4,
+            ..SimConfig::default()
+        })
+        .unwrap();
+        let state = sim
+            .step(&Command {
+                joint_targets: [0.1, 0.6, 0.0, -1.1, 0.2, 0.7, 0.3],
+                magnet: 1,
+            })
+            .unwrap();
         let m = step_messages(&state, sim.model());
         assert_eq!(m.joint_states.name[6], "iiwa_joint_7");
         assert_eq!(m.clock.clock, time_from_ns(state.stamp_ns));
         let back = state_from_messages(
-            &m.joint_states, &m.ef_pose, &m.object_pose, &m.object_color, &m.magnet, state.step, state.episode,
+            &m.joint_states,
+            &m.ef_pose,
+            &m.object_pose,
+            &m.object_color,
+            &m.magnet,
+            state.step,
+            state.episode,
         )
         .unwrap();
         assert_eq!(back.joint_positions, state.joint_positions);
         assert_eq!(back.ef_pose.translation, state.ef_pose.translation);
         assert_eq!(back.cube_pose.translation, state.cube_pose.translation);
         assert_eq!(back.cube_rgb, state.cube_rgb);
-        assert_eq!((back.magnet_on, back.holding), (state.magnet_on, state.holding));
+        assert_eq!(
+            (back.magnet_on, back.holding),
+            (state.magnet_on, state.holding)
+        );
         let mut late = m.magnet.clone();
         late.header.stamp.nanosec += 1;
-        let err = state_from_messages(&m.joint_states, &m.ef_pose, &m.object_pose, &m.object_color, &late, 0, 0)
-            .unwrap_err();
+        let err = state_from_messages(
+            &m.joint_states,
+            &m.ef_pose,
+            &m.object_pose,
+            &m.object_color,
+            &late,
+            0,
+            0,
+        )
+        .unwrap_err();
         assert!(err.to_string().contains("/magnet/state has stamp"), "{err}");
     }
 
     #[test]
     fn time_conversion_is_exact() {
-        for ns in [0, 1, 999_999_999, 1_000_000_000, 41_666_667, 123_456_789_012] {
+        for ns in [
+            0,
+            1,
+            999_999_999,
+            1_000_000_000,
+            41_666_667,
+            123_456_789_012,
+        ] {
             assert_eq!(ns_from_time(&time_from_ns(ns)), ns);
         }
     }

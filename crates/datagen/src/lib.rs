@@ -1,0 +1,414 @@
+//! Data generation for both experiments: the simulator, babbler and recorder logic of the
+//! graph, composed in one process (`causal-arm generate`). The DDS graph runs the same
+//! step function in three processes; for one seed both write the same messages.
+//!
+//! Step protocol (one episode of K steps): for k in 0..K the simulator publishes its state
+//! s_k (all topics stamped with one sim time), the babbler answers with action a_k stamped
+//! with s_k's time, and the simulator executes it. Every topic therefore holds exactly K
+//! messages per episode; the dataset builder forms (s_k, a_k, s_{k+1}) for k < K−1.
+
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use causal_arm_babbler::{Exp1Babbler, Exp1Config, Exp2Babbler, Exp2Config};
+use causal_arm_kinematics::{ArmModel, EMBEDDED_IIWA_URDF};
+use causal_arm_msgs::msg::Action;
+use causal_arm_msgs::std_msgs::msg::{Header, String as RosString};
+use causal_arm_recorder::{BagError, BagOptions, BagWriter, offered_qos_yaml};
+use causal_arm_sim::ros::{self, StepMessages, topics};
+use causal_arm_sim::{Command, SimConfig, SimError, SimState, Simulator};
+use thiserror::Error;
+
+/// Which of the paper's experiments.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Experiment {
+    /// Kinematics: random joint configurations.
+    Exp1,
+    /// Intuitive physics: magnet, cube, table.
+    Exp2,
+}
+
+impl FromStr for Experiment {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "exp1" => Ok(Self::Exp1),
+            "exp2" => Ok(Self::Exp2),
+            other => Err(format!(
+                "unknown experiment {other:?}: expected exp1 or exp2"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for Experiment {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Exp1 => "exp1",
+            Self::Exp2 => "exp2",
+        })
+    }
+}
+
+/// Size presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Profile {
+    /// The paper's protocol: 500,000 steps (exp 1); 4,000 episodes × 500 (exp 2).
+    Paper,
+    /// A demo that runs in about a minute.
+    Quick,
+}
+
+impl FromStr for Profile {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "paper" => Ok(Self::Paper),
+            "quick" => Ok(Self::Quick),
+            other => Err(format!(
+                "unknown profile {other:?}: expected paper or quick"
+            )),
+        }
+    }
+}
+
+/// How many episodes of how many steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RunPlan {
+    /// Episodes (exp 1 runs one long episode).
+    pub episodes: u64,
+    /// Steps per episode.
+    pub steps_per_episode: u64,
+}
+
+impl RunPlan {
+    /// The profile's plan for `experiment`.
+    pub fn for_profile(experiment: Experiment, profile: Profile) -> Self {
+        match (experiment, profile) {
+            (Experiment::Exp1, Profile::Paper) => Self {
+                episodes: 1,
+                steps_per_episode: 500_000,
+            },
+            (Experiment::Exp1, Profile::Quick) => Self {
+                episodes: 1,
+                steps_per_episode: 5_000,
+            },
+            (Experiment::Exp2, Profile::Paper) => Self {
+                episodes: 4_000,
+                steps_per_episode: 500,
+            },
+            (Experiment::Exp2, Profile::Quick) => Self {
+                episodes: 20,
+                steps_per_episode: 500,
+            },
+        }
+    }
+
+    /// Total steps.
+    pub fn total_steps(&self) -> u64 {
+        self.episodes * self.steps_per_episode
+    }
+}
+
+/// Everything a generation run needs.
+#[derive(Debug, Clone)]
+pub struct GenerateOptions {
+    /// Experiment.
+    pub experiment: Experiment,
+    /// Size.
+    pub plan: RunPlan,
+    /// Seed of simulator and babbler.
+    pub seed: u64,
+    /// Bag directory to write.
+    pub out: PathBuf,
+    /// Replace an existing bag there.
+    pub overwrite: bool,
+    /// Simulator settings (its seed is derived from `seed`).
+    pub sim: SimConfig,
+    /// Exp 1 babbling settings (seed derived from `seed`).
+    pub exp1: Exp1Config,
+    /// Exp 2 babbling settings (seed derived from `seed`).
+    pub exp2: Exp2Config,
+}
+
+impl GenerateOptions {
+    /// Defaults for `experiment` with `plan`, `seed` and `out`.
+    pub fn new(experiment: Experiment, plan: RunPlan, seed: u64, out: impl Into<PathBuf>) -> Self {
+        Self {
+            experiment,
+            plan,
+            seed,
+            out: out.into(),
+            overwrite: false,
+            sim: SimConfig::default(),
+            exp1: Exp1Config::default(),
+            exp2: Exp2Config::default(),
+        }
+    }
+}
+
+/// Why generation failed.
+#[derive(Debug, Error)]
+pub enum GenerateError {
+    /// Bad options.
+    #[error("{0}")]
+    Options(String),
+    /// The simulator refused.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// Writing the bag failed.
+    #[error(transparent)]
+    Bag(#[from] BagError),
+}
+
+/// What a run wrote.
+#[derive(Debug, Clone)]
+pub struct GenerateSummary {
+    /// Bag directory.
+    pub bag_dir: PathBuf,
+    /// Steps simulated.
+    pub steps: u64,
+    /// Messages written.
+    pub messages: u64,
+}
+
+/// One babbler of either experiment.
+pub enum Babbler {
+    /// Experiment 1.
+    Exp1(Exp1Babbler),
+    /// Experiment 2.
+    Exp2(Exp2Babbler),
+}
+
+impl Babbler {
+    /// The babbler of `options.experiment`.
+    pub fn new(options: &GenerateOptions, model: &ArmModel) -> Result<Self, GenerateError> {
+        Ok(match options.experiment {
+            Experiment::Exp1 => Self::Exp1(
+                Exp1Babbler::new(
+                    model,
+                    &Exp1Config {
+                        seed: babbler_seed(options.seed),
+                        ..options.exp1.clone()
+                    },
+                )
+                .map_err(GenerateError::Options)?,
+            ),
+            Experiment::Exp2 => Self::Exp2(
+                Exp2Babbler::new(
+                    model,
+                    Exp2Config {
+                        seed: babbler_seed(options.seed),
+                        table_top_z: options.sim.table_top_z,
+                        cube_size: options.sim.cube_size,
+                        table_area: (
+                            options.sim.table_center,
+                            [
+                                options.sim.table_half_extents[0] - options.sim.cube_size,
+                                options.sim.table_half_extents[1] - options.sim.cube_size,
+                            ],
+                        ),
+                        ..options.exp2.clone()
+                    },
+                )
+                .map_err(GenerateError::Options)?,
+            ),
+        })
+    }
+
+    /// Next command for `state`.
+    pub fn next(&mut self, state: &SimState) -> Command {
+        match self {
+            Self::Exp1(b) => b.next(state),
+            Self::Exp2(b) => b.next(state),
+        }
+    }
+
+    /// New episode.
+    pub fn reset(&mut self) {
+        if let Self::Exp2(b) = self {
+            b.reset();
+        }
+    }
+}
+
+/// Seed of the simulator for a run seed (decorrelated from the babbler's).
+pub fn sim_seed(seed: u64) -> u64 {
+    seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5151
+}
+
+/// Seed of the babbler for a run seed.
+pub fn babbler_seed(seed: u64) -> u64 {
+    seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ 0xBABB
+}
+
+/// The Action message answering `state` with `command`.
+pub fn action_message(state: &SimState, command: &Command, step_in_episode: u64) -> Action {
+    Action {
+        header: Header {
+            stamp: ros::time_from_ns(state.stamp_ns),
+            frame_id: String::new(),
+        },
+        episode: state.episode,
+        step: step_in_episode as u32,
+        joint_deltas: command
+            .joint_targets
+            .iter()
+            .zip(&state.joint_positions)
+            .map(|(t, q)| t - q)
+            .collect(),
+        joint_targets: command.joint_targets.to_vec(),
+        magnet: command.magnet,
+    }
+}
+
+/// Receives the messages of a run in graph order (the recorder, or a test).
+pub trait StepSink {
+    /// Called once before the first step.
+    fn robot_description(&mut self, urdf: &RosString) -> Result<(), GenerateError>;
+    /// All state messages of one step.
+    fn state(&mut self, stamp_ns: u64, messages: &StepMessages) -> Result<(), GenerateError>;
+    /// The babbler's answer to that state.
+    fn action(&mut self, stamp_ns: u64, action: &Action) -> Result<(), GenerateError>;
+}
+
+/// Checks options before anything is written.
+pub fn validate(options: &GenerateOptions) -> Result<(), GenerateError> {
+    if options.plan.episodes == 0 || options.plan.steps_per_episode == 0 {
+        return Err(GenerateError::Options(format!(
+            "episodes ({}) and steps per episode ({}) must be positive",
+            options.plan.episodes, options.plan.steps_per_episode
+        )));
+    }
+    let sim = Simulator::new(SimConfig {
+        seed: sim_seed(options.seed),
+        ..options.sim.clone()
+    })?;
+    Babbler::new(options, sim.model())?;
+    Ok(())
+}
+
+/// Runs the experiment, feeding every message to `sink`; `progress(done, total)` is called
+/// after every step.
+pub fn run(
+    options: &GenerateOptions,
+    sink: &mut dyn StepSink,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<u64, GenerateError> {
+    validate(options)?;
+    let mut sim = Simulator::new(SimConfig {
+        seed: sim_seed(options.seed),
+        ..options.sim.clone()
+    })?;
+    let model = sim.model().clone();
+    let mut babbler = Babbler::new(options, &model)?;
+    sink.robot_description(&RosString {
+        data: EMBEDDED_IIWA_URDF.to_owned(),
+    })?;
+    let total = options.plan.total_steps();
+    let mut done = 0;
+    for episode in 0..options.plan.episodes {
+        if episode > 0 {
+            sim.reset_episode();
+            babbler.reset();
+        }
+        let mut state = sim.state();
+        for k in 0..options.plan.steps_per_episode {
+            sink.state(state.stamp_ns, &ros::step_messages(&state, &model))?;
+            let command = babbler.next(&state);
+            sink.action(state.stamp_ns, &action_message(&state, &command, k))?;
+            state = sim.step(&command)?;
+            done += 1;
+            progress(done, total);
+        }
+    }
+    Ok(done)
+}
+
+/// Writes a run into a bag.
+pub struct BagSink {
+    writer: BagWriter,
+    messages: u64,
+}
+
+impl BagSink {
+    /// Creates the bag and registers the graph's topics with their offered QoS.
+    pub fn create(dir: &Path, overwrite: bool) -> Result<Self, GenerateError> {
+        let mut writer = BagWriter::create(
+            dir,
+            BagOptions {
+                overwrite,
+                ..BagOptions::default()
+            },
+        )?;
+        let recorded = offered_qos_yaml(true, false, true, 0);
+        let latched = offered_qos_yaml(true, true, false, 1);
+        use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
+        use causal_arm_msgs::msg::{MagnetState, ObjectColor};
+        use causal_arm_msgs::rosgraph_msgs::msg::Clock;
+        use causal_arm_msgs::sensor_msgs::msg::JointState;
+        use causal_arm_msgs::tf2_msgs::msg::TFMessage;
+        writer.add_topic::<RosString>(topics::ROBOT_DESCRIPTION, &latched)?;
+        writer.add_topic::<JointState>(topics::JOINT_STATES, &recorded)?;
+        writer.add_topic::<PoseStamped>(topics::EF_POSE, &recorded)?;
+        writer.add_topic::<PoseStamped>(topics::OBJECT_POSE, &recorded)?;
+        writer.add_topic::<ObjectColor>(topics::OBJECT_COLOR, &recorded)?;
+        writer.add_topic::<MagnetState>(topics::MAGNET_STATE, &recorded)?;
+        writer.add_topic::<Clock>(topics::CLOCK, &recorded)?;
+        writer.add_topic::<TFMessage>(topics::TF, &recorded)?;
+        writer.add_topic::<Action>(topics::ACTION, &recorded)?;
+        Ok(Self {
+            writer,
+            messages: 0,
+        })
+    }
+
+    /// Finalizes the bag.
+    pub fn finish(self) -> Result<causal_arm_recorder::BagSummary, GenerateError> {
+        Ok(self.writer.finish()?)
+    }
+}
+
+impl StepSink for BagSink {
+    fn robot_description(&mut self, urdf: &RosString) -> Result<(), GenerateError> {
+        self.writer.write(topics::ROBOT_DESCRIPTION, 0, urdf)?;
+        self.messages += 1;
+        Ok(())
+    }
+
+    fn state(&mut self, stamp_ns: u64, m: &StepMessages) -> Result<(), GenerateError> {
+        let w = &mut self.writer;
+        w.write(topics::JOINT_STATES, stamp_ns, &m.joint_states)?;
+        w.write(topics::EF_POSE, stamp_ns, &m.ef_pose)?;
+        w.write(topics::OBJECT_POSE, stamp_ns, &m.object_pose)?;
+        w.write(topics::OBJECT_COLOR, stamp_ns, &m.object_color)?;
+        w.write(topics::MAGNET_STATE, stamp_ns, &m.magnet)?;
+        w.write(topics::CLOCK, stamp_ns, &m.clock)?;
+        w.write(topics::TF, stamp_ns, &m.tf)?;
+        self.messages += 7;
+        Ok(())
+    }
+
+    fn action(&mut self, stamp_ns: u64, action: &Action) -> Result<(), GenerateError> {
+        self.writer.write(topics::ACTION, stamp_ns, action)?;
+        self.messages += 1;
+        Ok(())
+    }
+}
+
+/// Runs the experiment in this process and writes the bag (`causal-arm generate`).
+pub fn generate(
+    options: &GenerateOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<GenerateSummary, GenerateError> {
+    validate(options)?;
+    let mut sink = BagSink::create(&options.out, options.overwrite)?;
+    let steps = run(options, &mut sink, progress)?;
+    let messages = sink.messages;
+    let summary = sink.finish()?;
+    Ok(GenerateSummary {
+        bag_dir: summary.dir,
+        steps,
+        messages,
+    })
+}

@@ -1,0 +1,132 @@
+//! `causal_arm_babbler`: answers every simulator state with a babbling action.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use anyhow::bail;
+use causal_arm_datagen::{Babbler, action_message, validate};
+use causal_arm_kinematics::ArmModel;
+use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
+use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
+use causal_arm_msgs::sensor_msgs::msg::JointState;
+use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
+use causal_arm_sim::ros::{ns_from_time, state_from_messages, topics};
+
+use crate::{RunParams, run_param_specs, stop_flag};
+
+#[derive(Default)]
+struct Partial {
+    joint_states: Option<JointState>,
+    ef_pose: Option<PoseStamped>,
+    object_pose: Option<PoseStamped>,
+    object_color: Option<ObjectColor>,
+    magnet: Option<MagnetState>,
+}
+
+/// Runs the babbler node until it answered every step of the run or SIGINT/SIGTERM.
+pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
+    let mut specs = run_param_specs();
+    specs.push(
+        ParamSpec::new(
+            "timeout",
+            ParamValue::Double(60.0),
+            "give up waiting for the simulator after this many s",
+        )
+        .with_range(0.1, 1e6),
+    );
+    let mut node = RosNode::new("causal_arm_babbler", &specs, ros_args)?;
+    let run = RunParams::from_params(node.params(), "")?;
+    validate(&run.options)?;
+    let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+    let stop = stop_flag();
+    let recorded = qos::recorded();
+    let joint_states = node.subscription::<JointState>(topics::JOINT_STATES, recorded.clone())?;
+    let ef_pose = node.subscription::<PoseStamped>(topics::EF_POSE, recorded.clone())?;
+    let object_pose = node.subscription::<PoseStamped>(topics::OBJECT_POSE, recorded.clone())?;
+    let object_color = node.subscription::<ObjectColor>(topics::OBJECT_COLOR, recorded.clone())?;
+    let magnet = node.subscription::<MagnetState>(topics::MAGNET_STATE, recorded.clone())?;
+    let actions = node.publisher::<Action>(topics::ACTION, recorded)?;
+    let model = ArmModel::embedded();
+    let mut babbler = Babbler::new(&run.options, &model)?;
+
+    if !node.wait_for_subscribers(&actions, 1, timeout, Duration::from_millis(500), &stop) {
+        if stop.load(Ordering::SeqCst) {
+            return Ok(());
+        }
+        bail!(
+            "no subscriber of {} (the simulator) within {timeout:?}",
+            topics::ACTION
+        );
+    }
+
+    let per_episode = run.options.plan.steps_per_episode;
+    let total = run.options.plan.total_steps();
+    let mut pending: BTreeMap<u64, Partial> = BTreeMap::new();
+    let mut answered = 0u64;
+    let mut last_activity = Instant::now();
+    while answered < total && !stop.load(Ordering::SeqCst) {
+        let mut got = false;
+        macro_rules! drain {
+            ($sub:expr, $field:ident, $stamp:expr) => {
+                while let Ok(Some((m, _))) = $sub.take() {
+                    got = true;
+                    let key = ns_from_time(&$stamp(&m));
+                    pending.entry(key).or_default().$field = Some(m);
+                }
+            };
+        }
+        drain!(joint_states, joint_states, |m: &JointState| m
+            .header
+            .stamp
+            .clone());
+        drain!(ef_pose, ef_pose, |m: &PoseStamped| m.header.stamp.clone());
+        drain!(object_pose, object_pose, |m: &PoseStamped| m
+            .header
+            .stamp
+            .clone());
+        drain!(object_color, object_color, |m: &ObjectColor| m
+            .header
+            .stamp
+            .clone());
+        drain!(magnet, magnet, |m: &MagnetState| m.header.stamp.clone());
+        while let Some(entry) = pending.first_entry() {
+            let p = entry.get();
+            let (Some(js), Some(ef), Some(obj), Some(col), Some(mag)) = (
+                &p.joint_states,
+                &p.ef_pose,
+                &p.object_pose,
+                &p.object_color,
+                &p.magnet,
+            ) else {
+                break;
+            };
+            let k = answered % per_episode;
+            let episode = (answered / per_episode) as u32;
+            if k == 0 && answered > 0 {
+                babbler.reset();
+            }
+            let state = state_from_messages(js, ef, obj, col, mag, answered, episode)?;
+            entry.remove();
+            let command = babbler.next(&state);
+            actions
+                .publish(action_message(&state, &command, k))
+                .map_err(|e| anyhow::anyhow!("publishing on {}: {e:?}", topics::ACTION))?;
+            answered += 1;
+        }
+        if got {
+            last_activity = Instant::now();
+        } else {
+            if last_activity.elapsed() > timeout {
+                bail!(
+                    "no state from the simulator for {timeout:?} after {answered} of {total} steps"
+                );
+            }
+            std::thread::sleep(Duration::from_micros(50));
+        }
+    }
+    // Let reliable delivery of the last action complete.
+    std::thread::sleep(Duration::from_millis(200));
+    tracing::info!("babbler answered {answered} of {total} steps");
+    Ok(())
+}

@@ -1,0 +1,230 @@
+"""Datasets as real ROS 2 bags: `causal-arm generate` (in-process) and `causal-arm launch`
+(three DDS node processes) for both experiments, read back with independent readers
+(rosbags AnyReader, mcap-ros2-support), checked for completeness and physics.
+"""
+
+import json
+import os
+import pathlib
+import signal
+import subprocess
+import time
+
+import numpy as np
+import pytest
+from mcap_ros2.reader import read_ros2_messages
+from rosbags.highlevel import AnyReader
+
+STATE_TOPICS = ["/joint_states", "/end_effector/pose", "/object/pose", "/object/color", "/magnet/state",
+                "/clock", "/tf"]
+STEP_TOPICS = STATE_TOPICS + ["/babbler/action"]
+STEP_NS = 10 / 240 * 1e9
+
+
+def read_bag(path):
+    """topic -> list of (log_time, msg) with rosbags, which takes the types from the bag."""
+    out = {}
+    with AnyReader([pathlib.Path(path)]) as reader:
+        for conn, t, raw in reader.messages():
+            out.setdefault(conn.topic, []).append((t, reader.deserialize(raw, conn.msgtype)))
+    return out
+
+
+def stamp_ns(msg):
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+@pytest.fixture(scope="module")
+def exp1_bag(run_cli, tmp_path_factory):
+    out = tmp_path_factory.mktemp("bags") / "exp1"
+    r = run_cli("generate", "exp1", "--steps", "600", "--seed", "3", "--out", out, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert str(out) in r.stdout
+    return out
+
+
+@pytest.fixture(scope="module")
+def exp2_bag(run_cli, tmp_path_factory):
+    out = tmp_path_factory.mktemp("bags") / "exp2"
+    r = run_cli("generate", "exp2", "--episodes", "4", "--seed", "5", "--out", out, timeout=300)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+@pytest.mark.parametrize("which,steps", [("exp1", 600), ("exp2", 2000)])
+def test_bag_is_complete_and_readable(which, steps, exp1_bag, exp2_bag):
+    bag = exp1_bag if which == "exp1" else exp2_bag
+    topics = read_bag(bag)
+    for topic in STEP_TOPICS:
+        assert len(topics[topic]) == steps, f"{topic}: {len(topics[topic])} != {steps}"
+    assert len(topics["/robot_description"]) == 1
+    stamps = [stamp_ns(m) for _, m in topics["/joint_states"]]
+    assert all(b > a for a, b in zip(stamps, stamps[1:])), "stamps must strictly increase"
+    gaps = np.diff(stamps)
+    assert np.all(np.abs(gaps - STEP_NS) <= 1), f"gaps: {set(gaps.tolist())}"
+    # Every step's topics share its stamp, and the action answers that state.
+    for topic in ("/end_effector/pose", "/object/pose", "/magnet/state", "/babbler/action"):
+        assert [stamp_ns(m) for _, m in topics[topic]] == stamps, topic
+    # mcap-ros2-support decodes everything with the schemas embedded in the bag.
+    mcap_file = next(pathlib.Path(bag).glob("*.mcap"))
+    count = sum(1 for _ in read_ros2_messages(str(mcap_file)))
+    assert count == steps * len(STEP_TOPICS) + 1
+
+
+def test_exp1_actions_follow_the_babbling_distribution(exp1_bag):
+    topics = read_bag(exp1_bag)
+    targets = np.array([m.joint_targets for _, m in topics["/babbler/action"]])
+    positions = np.array([m.position for _, m in topics["/joint_states"]])
+    assert targets.shape == (600, 7)
+    assert np.all(np.abs(targets.mean(axis=0)) < 0.1)
+    assert np.all(np.abs(targets.std(axis=0) - 0.35) < 0.05)
+    deltas = np.array([m.joint_deltas for _, m in topics["/babbler/action"]])
+    np.testing.assert_allclose(deltas, targets - positions, atol=1e-12)
+
+
+def test_exp2_cube_moves_only_while_held(exp2_bag):
+    topics = read_bag(exp2_bag)
+    z = np.array([m.pose.position.z for _, m in topics["/object/pose"]])
+    holding = np.array([m.holding for _, m in topics["/magnet/state"]])
+    on = np.array([m.on for _, m in topics["/magnet/state"]])
+    colour = np.array([[m.color.r, m.color.g, m.color.b] for _, m in topics["/object/color"]])
+    table = 0.2 + 0.025
+    assert holding.sum() > 0, "the cube was never picked"
+    assert np.all(on[holding]), "holding implies the magnet is on"
+    lifted = z > table + 0.02
+    # The cube is above the table only while held or within 40 steps after a release.
+    released_recently = np.zeros_like(holding)
+    last_hold = -1000
+    for i, h in enumerate(holding):
+        if h:
+            last_hold = i
+        released_recently[i] = i - last_hold <= 40
+    assert np.all(~lifted | holding | released_recently), np.where(lifted & ~holding & ~released_recently)
+    assert lifted[holding].any(), "held cube never lifted"
+    # After release it falls back to the table.
+    settled = ~holding & ~released_recently
+    assert np.all(np.abs(z[settled] - table) < 0.01) or np.all(z[settled] < table + 0.01)
+    # Colour constant within an episode, different across episodes.
+    episodes = colour.reshape(4, 500, 3)
+    assert np.all(episodes == episodes[:, :1, :])
+    assert len({tuple(e[0]) for e in episodes}) == 4
+
+
+def test_metadata_yaml_describes_the_bag(exp1_bag):
+    import yaml
+
+    meta = yaml.safe_load((pathlib.Path(exp1_bag) / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["storage_identifier"] == "mcap"
+    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in meta["topics_with_message_count"]}
+    assert counts["/joint_states"] == 600 and counts["/robot_description"] == 1
+    assert meta["message_count"] == 600 * 8 + 1
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["generate", "exp3", "--out", "X"], 'unknown experiment "exp3"'),
+    (["generate", "exp1", "--steps", "0", "--out", "X"], "--steps must be a positive number, got 0"),
+    (["generate", "exp1", "--steps", "-5", "--out", "X"], "--steps must be a positive number, got -5"),
+    (["generate", "exp2", "--episodes", "0", "--out", "X"], "--episodes must be a positive number"),
+    (["generate", "exp1", "--profile", "huge", "--out", "X"], 'unknown profile "huge"'),
+])
+def test_bad_generate_arguments(run_cli, tmp_path, args, needle):
+    args = [str(tmp_path / "out") if a == "X" else a for a in args]
+    r = run_cli(*args)
+    assert r.returncode != 0
+    assert needle in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists(), "nothing may be written for bad input"
+
+
+def test_existing_bag_is_refused_unless_overwrite(run_cli, exp1_bag, tmp_path):
+    before = sorted(p.name for p in pathlib.Path(exp1_bag).iterdir())
+    r = run_cli("generate", "exp1", "--steps", "10", "--out", exp1_bag)
+    assert r.returncode != 0 and "overwrite" in r.stderr, r.stderr
+    assert sorted(p.name for p in pathlib.Path(exp1_bag).iterdir()) == before
+    copy = tmp_path / "again"
+    assert run_cli("generate", "exp1", "--steps", "10", "--out", copy).returncode == 0
+    r = run_cli("generate", "exp1", "--steps", "20", "--out", copy, "--overwrite")
+    assert r.returncode == 0, r.stderr
+    assert len(read_bag(copy)["/joint_states"]) == 20
+
+
+def test_unwritable_directory(run_cli, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    r = run_cli("generate", "exp1", "--steps", "10", "--out", blocker / "bag")
+    assert r.returncode != 0
+    assert str(blocker) in r.stderr
+
+
+def _canonical(bag):
+    """Bag content as comparable data: topic -> [(log_time, normalized message)]."""
+    topics = read_bag(bag)
+
+    def norm(v):
+        if hasattr(v, "__dataclass_fields__"):
+            return {k: norm(getattr(v, k)) for k in v.__dataclass_fields__ if k != "__msgtype__"}
+        if isinstance(v, np.ndarray):
+            return v.tolist()
+        if isinstance(v, list):
+            return [norm(x) for x in v]
+        return v
+
+    return {t: [(ts, norm(m)) for ts, m in msgs] for t, msgs in topics.items()}
+
+
+def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, private_netns):
+    env = {"ROS_DOMAIN_ID": "17", "RUST_LOG": "warn"}
+    dds = tmp_path / "dds"
+    r = run_cli("launch", "exp2", "--episodes", "1", "--seed", "8", "--out", dds, env=env, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert str(dds) in r.stdout
+    local = tmp_path / "local"
+    r = run_cli("generate", "exp2", "--episodes", "1", "--seed", "8", "--out", local)
+    assert r.returncode == 0, r.stderr
+    a, b = _canonical(dds), _canonical(local)
+    assert a.keys() == b.keys()
+    for topic in a:
+        assert a[topic] == b[topic], f"{topic} differs between launch and generate"
+
+
+def test_sigint_mid_run_leaves_a_finalized_bag(causal_arm_bin, tmp_path, private_netns):
+    """Also: a CycloneDDS subscriber beside the running graph receives plausible states."""
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+    from ros_idl import JointState, PoseStamped, ros_default_qos
+
+    participant = DomainParticipant(18)
+    js_reader = DataReader(participant, Topic(participant, "rt/joint_states", JointState), qos=ros_default_qos(100))
+    ef_reader = DataReader(participant, Topic(participant, "rt/end_effector/pose", PoseStamped),
+                           qos=ros_default_qos(100))
+    env = {**os.environ, "ROS_DOMAIN_ID": "18", "RUST_LOG": "warn"}
+    out = tmp_path / "interrupted"
+    proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", "100000", "--seed", "1",
+                             "--out", str(out)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not any(out.glob("*.mcap")):
+        time.sleep(0.2)
+    joint_states, ef_poses = [], []
+    until = time.monotonic() + 4
+    while time.monotonic() < until:
+        joint_states += [m for m in js_reader.take(N=100) if isinstance(m, JointState)]
+        ef_poses += [m for m in ef_reader.take(N=100) if isinstance(m, PoseStamped)]
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    proc.communicate(timeout=120)
+    topics = read_bag(out)
+    n = len(topics["/joint_states"])
+    assert 0 < n < 100000
+    for topic in STEP_TOPICS:
+        assert len(topics[topic]) == n, topic
+    assert (out / "metadata.yaml").exists()
+    assert len(joint_states) >= 10 and len(ef_poses) >= 10
+    limits = np.array([2.967, 2.094, 2.967, 2.094, 2.967, 2.094, 3.054])
+    for m in joint_states:
+        assert list(m.name) == [f"iiwa_joint_{i}" for i in range(1, 8)]
+        assert np.all(np.abs(np.array(m.position)) <= limits + 1e-9)
+    for m in ef_poses:
+        p = m.pose.position
+        assert m.header.frame_id == "world"
+        assert 0.0 < np.hypot(p.x, p.y) < 1.4 and -0.5 < p.z < 1.4

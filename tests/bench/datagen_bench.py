@@ -4,12 +4,14 @@
 Runs, in one go on this machine:
   * `causal-arm generate exp1` (simulator + babbler + bag writing, one process, no DDS)
   * `causal-arm generate exp2`
+  * `causal-arm launch exp1` (simulator, babbler and recorder as three DDS processes in
+    lock-step; only when run inside tests/netns-run, since it starts DDS participants)
   * a PyBullet script doing the paper's exp1 loop: pybullet_data's kuka_iiwa, random
     normal joint targets (sigma 0.35, clipped to the limits), POSITION_CONTROL with the
     URDF forces, 10 substeps at 240 Hz, reading joint states and the end-effector pose
     each step (no recording, so it is a lower bound on PyBullet's cost).
 Prints a table with steps/s and ratios. Usage:
-  target/pyvenv/bin/python tests/bench/datagen_bench.py [--steps N] [--bin target/release/causal-arm]
+  tests/netns-run target/pyvenv/bin/python tests/bench/datagen_bench.py [--steps N] [--bin target/release/causal-arm]
 Run it on a quiet machine (nothing else building).
 """
 
@@ -51,6 +53,24 @@ def pybullet_exp1(steps: int, seed: int = 0) -> float:
     return steps / elapsed
 
 
+def in_private_netns() -> bool:
+    with open("/proc/net/dev") as f:
+        return [line.split(":")[0].strip() for line in f.readlines()[2:]] == ["lo"]
+
+
+def ours_dds(binary: str, steps: int) -> float:
+    """Whole `launch` wall time, including process start-up and discovery (~1 s)."""
+    import os
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp) / "bag"
+        env = {**os.environ, "ROS_DOMAIN_ID": "42", "RUST_LOG": "error"}
+        start = time.perf_counter()
+        subprocess.run([binary, "launch", "exp1", "--steps", str(steps), "--seed", "1", "--out", str(out)],
+                       check=True, capture_output=True, text=True, env=env)
+        return steps / (time.perf_counter() - start)
+
+
 def ours(binary: str, experiment: str, steps: int) -> float:
     with tempfile.TemporaryDirectory() as tmp:
         out = pathlib.Path(tmp) / "bag"
@@ -73,6 +93,10 @@ def main():
         ("causal-arm generate exp1 (in-process, writes bag)", ours(args.bin, "exp1", args.steps)),
         ("causal-arm generate exp2 (in-process, writes bag)", ours(args.bin, "exp2", args.steps)),
     ]
+    if in_private_netns():
+        rows.append(("causal-arm launch exp1 (3 DDS processes, lock-step)", ours_dds(args.bin, args.steps)))
+    else:
+        print("not inside tests/netns-run: skipping the DDS graph row")
     ref = rows[0][1]
     print(f"\n{'run':<52} {'steps/s':>10} {'vs PyBullet':>12}")
     for name, rate in rows:

@@ -13,7 +13,7 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
 use causal_arm_sim::ros::{ns_from_time, state_from_messages, topics};
 
-use crate::{RunParams, run_param_specs, stop_flag};
+use crate::{RunParams, run_param_specs, stop_flag, take_next};
 
 #[derive(Default)]
 struct Partial {
@@ -118,13 +118,41 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             last_activity = Instant::now();
         } else {
             if last_activity.elapsed() > timeout {
-                bail!(
-                    "no state from the simulator for {timeout:?} after {answered} of {total} steps"
-                );
+                bail!("no state from the simulator for {timeout:?} after {answered} of {total} steps");
             }
-            std::thread::sleep(Duration::from_micros(50));
+            // Sleep until the sample the oldest pending step still lacks arrives (no polling).
+            let missing = pending.values().next().map_or(0, |p| {
+                [
+                    p.joint_states.is_none(),
+                    p.ef_pose.is_none(),
+                    p.object_pose.is_none(),
+                    p.object_color.is_none(),
+                    p.magnet.is_none(),
+                ]
+                .iter()
+                .position(|m| *m)
+                .unwrap_or(0)
+            });
+            let wait = Duration::from_millis(100);
+            macro_rules! wait_on {
+                ($sub:expr, $field:ident) => {
+                    if let Some(Ok(m)) = take_next(&$sub, wait) {
+                        let key = ns_from_time(&m.header.stamp);
+                        pending.entry(key).or_default().$field = Some(m);
+                        last_activity = Instant::now();
+                    }
+                };
+            }
+            match missing {
+                0 => wait_on!(joint_states, joint_states),
+                1 => wait_on!(ef_pose, ef_pose),
+                2 => wait_on!(object_pose, object_pose),
+                3 => wait_on!(object_color, object_color),
+                _ => wait_on!(magnet, magnet),
+            }
         }
     }
+
     // Let reliable delivery of the last action complete.
     std::thread::sleep(Duration::from_millis(200));
     tracing::info!("babbler answered {answered} of {total} steps");

@@ -36,6 +36,32 @@ pub fn stop_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
     flag
 }
 
+/// Waits up to `timeout` for the next message of `subscription` without polling: the
+/// rustdds reader wakes us as soon as a sample arrives (this is the lock-step's latency).
+pub fn take_next<M: 'static + serde::de::DeserializeOwned>(
+    subscription: &ros2_client::Subscription<M>,
+    timeout: std::time::Duration,
+) -> Option<anyhow::Result<M>> {
+    if let Ok(Some((m, _))) = subscription.take() {
+        return Some(Ok(m));
+    }
+    smol::block_on(smol::future::or(
+        async {
+            Some(
+                subscription
+                    .async_take()
+                    .await
+                    .map(|(m, _)| m)
+                    .map_err(|e| anyhow::anyhow!("reading a sample: {e:?}")),
+            )
+        },
+        async {
+            smol::Timer::after(timeout).await;
+            None
+        },
+    ))
+}
+
 /// Runs a node's main and turns errors into a message and exit code 1.
 pub fn node_main(
     run: impl FnOnce(&causal_arm_node::RosArgs) -> anyhow::Result<()>,

@@ -18,7 +18,7 @@ use causal_arm_sim::ros::{self, ns_from_time, topics};
 use causal_arm_sim::{Command, SimConfig, Simulator};
 use ros2_client::Publisher;
 
-use crate::{ACK_TOPIC, RunParams, run_param_specs, stop_flag};
+use crate::{ACK_TOPIC, RunParams, run_param_specs, stop_flag, take_next};
 
 fn publish<M: causal_arm_msgs::RosMessage>(
     p: &Publisher<M>,
@@ -147,25 +147,21 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             // Wait for the babbler's answer to exactly this state.
             let asked = Instant::now();
             let action = loop {
-                match actions.take() {
-                    Ok(Some((a, _))) if ns_from_time(&a.header.stamp) == state.stamp_ns => break a,
-                    Ok(Some((a, _))) => tracing::warn!(
-                        "ignoring action stamped {} ns while waiting for {} ns",
-                        ns_from_time(&a.header.stamp),
-                        state.stamp_ns
-                    ),
-                    Ok(None) => std::thread::sleep(Duration::from_micros(50)),
-                    Err(e) => tracing::warn!("undecodable action: {e:?}"),
-                }
                 if stop.load(Ordering::SeqCst) {
                     return Ok(());
                 }
                 if asked.elapsed() > timeout {
-                    bail!(
-                        "no {} answering stamp {} ns within {timeout:?}",
-                        topics::ACTION,
+                    bail!("no {} answering stamp {} ns within {timeout:?}", topics::ACTION, state.stamp_ns);
+                }
+                match take_next(&actions, Duration::from_millis(100)) {
+                    Some(Ok(a)) if ns_from_time(&a.header.stamp) == state.stamp_ns => break a,
+                    Some(Ok(a)) => tracing::warn!(
+                        "ignoring action stamped {} ns while waiting for {} ns",
+                        ns_from_time(&a.header.stamp),
                         state.stamp_ns
-                    );
+                    ),
+                    Some(Err(e)) => tracing::warn!("undecodable action: {e:#}"),
+                    None => {}
                 }
             };
             let targets: [f64; ARM_DOF] =

@@ -228,3 +228,30 @@ def test_sigint_mid_run_leaves_a_finalized_bag(causal_arm_bin, tmp_path, private
         p = m.pose.position
         assert m.header.frame_id == "world"
         assert 0.0 < np.hypot(p.x, p.y) < 1.4 and -0.5 < p.z < 1.4
+
+
+def test_player_republishes_a_bag(run_cli, causal_arm_bin, tmp_path, private_netns):
+    bag = tmp_path / "small"
+    assert run_cli("generate", "exp1", "--steps", "40", "--seed", "2", "--out", bag).returncode == 0
+    env = {**os.environ, "ROS_DOMAIN_ID": "19", "RUST_LOG": "warn"}
+    echo = subprocess.Popen([str(causal_arm_bin), "topic", "echo", "/joint_states", "--type",
+                             "sensor_msgs/msg/JointState", "--count", "40", "--timeout", "60", "--qos", "recorded"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(1.0)
+    r = run_cli("play", bag, "--rate", "0", "--delay", "2", "--topics", "/joint_states", env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    out, err = echo.communicate(timeout=90)
+    assert echo.returncode == 0, err
+    got = [json.loads(line) for line in out.splitlines()]
+    want = [m for _, m in read_bag(bag)["/joint_states"]]
+    assert len(got) == 40
+    for g, w in zip(got, want):
+        assert g["position"] == list(w.position)
+        assert g["header"]["stamp"] == {"sec": w.header.stamp.sec, "nanosec": w.header.stamp.nanosec}
+
+
+def test_player_bad_input(run_cli, tmp_path, exp1_bag, private_netns):
+    r = run_cli("play", tmp_path / "missing")
+    assert r.returncode != 0 and "missing" in r.stderr
+    r = run_cli("play", exp1_bag, "--topics", "/nope")
+    assert r.returncode != 0 and "no topic /nope" in r.stderr

@@ -3,6 +3,7 @@
 mod generate_cmd;
 mod kinematics_cmd;
 mod launch_cmd;
+mod play_cmd;
 mod topic_cmd;
 
 use causal_arm_node::RosArgs;
@@ -30,6 +31,8 @@ enum Command {
     Generate(generate_cmd::GenerateArgs),
     /// Start the simulator, babbler and recorder nodes over DDS and record the bag.
     Launch(generate_cmd::GenerateArgs),
+    /// Republish a bag on its topics (like `ros2 bag play`).
+    Play(play_cmd::PlayArgs),
     /// Publish or echo any known message type as JSON (like `ros2 topic`).
     Topic(topic_cmd::TopicArgs),
 }
@@ -49,6 +52,7 @@ fn main() -> std::process::ExitCode {
         Command::Ik(args) => kinematics_cmd::run_ik(args),
         Command::Generate(args) => generate_cmd::run(args),
         Command::Launch(args) => launch_cmd::run(args, &ros_args),
+        Command::Play(args) => play_cmd::run(args, &ros_args),
         Command::Topic(args) => topic_cmd::run(args, &ros_args),
     };
     match result {

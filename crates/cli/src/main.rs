@@ -1,5 +1,6 @@
 //! `causal-arm`: one entry point for every tool and node of the project.
 
+mod bag_cmd;
 mod generate_cmd;
 mod kinematics_cmd;
 mod launch_cmd;
@@ -27,6 +28,8 @@ enum Command {
     Fk(kinematics_cmd::FkArgs),
     /// Inverse kinematics (damped least squares): joints that put `ef` at a position.
     Ik(kinematics_cmd::IkArgs),
+    /// Inspect bags (topics, counts, integrity).
+    Bag(bag_cmd::BagArgs),
     /// Run an experiment in one process (no DDS) and write its dataset bag.
     Generate(generate_cmd::GenerateArgs),
     /// Start the simulator, babbler and recorder nodes over DDS and record the bag.
@@ -50,6 +53,7 @@ fn main() -> std::process::ExitCode {
     let result = match &cli.command {
         Command::Fk(args) => kinematics_cmd::run_fk(args),
         Command::Ik(args) => kinematics_cmd::run_ik(args),
+        Command::Bag(args) => bag_cmd::run(args),
         Command::Generate(args) => generate_cmd::run(args),
         Command::Launch(args) => launch_cmd::run(args, &ros_args),
         Command::Play(args) => play_cmd::run(args, &ros_args),

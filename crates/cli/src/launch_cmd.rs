@@ -55,6 +55,14 @@ fn wait_with_timeout(
 pub fn run(args: &GenerateArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     let options = args.options()?;
     causal_arm_datagen::validate(&options)?;
+    if !options.overwrite
+        && let Some(found) = causal_arm_recorder::existing_bag(&options.out)
+    {
+        bail!(
+            "{} already holds a bag ({found}); pass --overwrite to replace it",
+            options.out.display()
+        );
+    }
     let plan = options.plan;
     let mut params = vec![
         format!("experiment:={}", options.experiment),

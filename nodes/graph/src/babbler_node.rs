@@ -118,7 +118,9 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             last_activity = Instant::now();
         } else {
             if last_activity.elapsed() > timeout {
-                bail!("no state from the simulator for {timeout:?} after {answered} of {total} steps");
+                bail!(
+                    "no state from the simulator for {timeout:?} after {answered} of {total} steps"
+                );
             }
             // Sleep until the sample the oldest pending step still lacks arrives (no polling).
             let missing = pending.values().next().map_or(0, |p| {

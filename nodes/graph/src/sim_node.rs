@@ -151,7 +151,11 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
                     return Ok(());
                 }
                 if asked.elapsed() > timeout {
-                    bail!("no {} answering stamp {} ns within {timeout:?}", topics::ACTION, state.stamp_ns);
+                    bail!(
+                        "no {} answering stamp {} ns within {timeout:?}",
+                        topics::ACTION,
+                        state.stamp_ns
+                    );
                 }
                 match take_next(&actions, Duration::from_millis(100)) {
                     Some(Ok(a)) if ns_from_time(&a.header.stamp) == state.stamp_ns => break a,

@@ -41,8 +41,11 @@ pub fn init_with_level(level: Option<&str>) {
     if tracing::subscriber::set_global_default(subscriber).is_ok() {
         // rustdds logs through `log`; bridge only its errors (its warnings are noise
         // such as per-datagram size notes).
+        // discovery_db reports ros2-client's own /clock reader (typed builtin_interfaces/Time)
+        // meeting our correctly typed rosgraph_msgs/Clock writers as an error on every start.
         let _ = tracing_log::LogTracer::builder()
             .with_max_level(log::LevelFilter::Error)
+            .ignore_crate("rustdds::discovery::discovery_db")
             .init();
     }
 }

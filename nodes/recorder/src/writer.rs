@@ -105,8 +105,8 @@ fn io<'a>(path: &'a Path, action: &'static str) -> impl FnOnce(std::io::Error) -
     }
 }
 
-/// Whether `dir` already holds a bag, and what shows it.
-pub(crate) fn existing_bag(dir: &Path) -> Option<String> {
+/// Whether `dir` already holds a bag, and what shows it (so tools refuse before starting work).
+pub fn existing_bag(dir: &Path) -> Option<String> {
     let entries = std::fs::read_dir(dir).ok()?;
     let names: Vec<String> = entries
         .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))

@@ -164,6 +164,7 @@ pub struct Exp2Babbler {
     upper: [f64; ARM_DOF],
     phase: Phase,
     ik_seed: u64,
+    ik_cache: Option<(IkTarget, [f64; ARM_DOF])>,
 }
 
 impl Exp2Babbler {
@@ -192,6 +193,7 @@ impl Exp2Babbler {
             lower,
             upper,
             ik_seed: 0,
+            ik_cache: None,
         })
     }
 
@@ -229,7 +231,24 @@ impl Exp2Babbler {
         *q
     }
 
+    /// IK for `target`, solved once per distinct target: while the babbler approaches or
+    /// descends onto a resting cube the target is the same every step, so the joint-space
+    /// goal is reused (the servo moves toward it) instead of re-solved.
     fn ik(&mut self, q: &[f64; ARM_DOF], target: IkTarget) -> Option<[f64; ARM_DOF]> {
+        if let Some((cached_target, joints)) = &self.ik_cache
+            && (cached_target.position - target.position).norm() < 1e-9
+            && cached_target.orientation == target.orientation
+        {
+            return Some(*joints);
+        }
+        let solved = self.solve_ik(q, &target);
+        if let Some(joints) = solved {
+            self.ik_cache = Some((target, joints));
+        }
+        solved
+    }
+
+    fn solve_ik(&mut self, q: &[f64; ARM_DOF], target: &IkTarget) -> Option<[f64; ARM_DOF]> {
         self.ik_seed += 1;
         let options = IkOptions {
             initial: Some(q.to_vec()),
@@ -240,7 +259,7 @@ impl Exp2Babbler {
             ..IkOptions::default()
         };
         self.model
-            .inverse(&target, &options)
+            .inverse(target, &options)
             .ok()
             .map(|s| s.joints.try_into().expect("7 joints"))
     }

@@ -177,7 +177,7 @@ pub enum Babbler {
     /// Experiment 1.
     Exp1(Exp1Babbler),
     /// Experiment 2.
-    Exp2(Exp2Babbler),
+    Exp2(Box<Exp2Babbler>),
 }
 
 impl Babbler {
@@ -194,7 +194,7 @@ impl Babbler {
                 )
                 .map_err(GenerateError::Options)?,
             ),
-            Experiment::Exp2 => Self::Exp2(
+            Experiment::Exp2 => Self::Exp2(Box::new(
                 Exp2Babbler::new(
                     model,
                     Exp2Config {
@@ -212,7 +212,7 @@ impl Babbler {
                     },
                 )
                 .map_err(GenerateError::Options)?,
-            ),
+            )),
         })
     }
 

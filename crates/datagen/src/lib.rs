@@ -172,12 +172,13 @@ pub struct GenerateSummary {
     pub messages: u64,
 }
 
-/// One babbler of either experiment.
+/// One babbler of either experiment (one per run, so variant sizes do not matter).
+#[allow(clippy::large_enum_variant)]
 pub enum Babbler {
     /// Experiment 1.
     Exp1(Exp1Babbler),
     /// Experiment 2.
-    Exp2(Box<Exp2Babbler>),
+    Exp2(Exp2Babbler),
 }
 
 impl Babbler {
@@ -194,7 +195,7 @@ impl Babbler {
                 )
                 .map_err(GenerateError::Options)?,
             ),
-            Experiment::Exp2 => Self::Exp2(Box::new(
+            Experiment::Exp2 => Self::Exp2(
                 Exp2Babbler::new(
                     model,
                     Exp2Config {
@@ -212,7 +213,7 @@ impl Babbler {
                     },
                 )
                 .map_err(GenerateError::Options)?,
-            )),
+            ),
         })
     }
 

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Context as _, bail};
 use causal_arm_kinematics::{ArmModel, IkOptions, IkTarget};
 use clap::Args;
-use serde_json::json;
+use serde::Serialize;
 
 /// Arguments of `causal-arm fk`.
 #[derive(Debug, Args)]
@@ -61,13 +61,40 @@ fn parse_numbers(text: &str, what: &str) -> anyhow::Result<Vec<f64>> {
         .collect()
 }
 
-fn fk_json(model: &ArmModel, text: &str) -> anyhow::Result<serde_json::Value> {
+/// Pose of `ef` as printed by `fk`: a struct, not `json!`, so the keys keep this order.
+#[derive(Debug, Serialize)]
+struct FkOutput {
+    position: [f64; 3],
+    orientation_xyzw: [f64; 4],
+}
+
+/// Result of `ik` for one target, in print order.
+#[derive(Debug, Serialize)]
+struct IkOutput {
+    ok: bool,
+    joints: Vec<f64>,
+    error_m: f64,
+    orientation_error_rad: f64,
+    attempts: usize,
+}
+
+/// A failed target in `ik --batch`.
+#[derive(Debug, Serialize)]
+struct IkFailure {
+    ok: bool,
+    error: String,
+}
+
+fn fk_json(model: &ArmModel, text: &str) -> anyhow::Result<String> {
     let q = parse_numbers(text, "--joints")?;
     model.check_joints(&q)?;
     let pose = model.ef_pose(&q)?;
     let t = pose.translation.vector;
     let r = pose.rotation.coords; // x, y, z, w
-    Ok(json!({"position": [t.x, t.y, t.z], "orientation_xyzw": [r.x, r.y, r.z, r.w]}))
+    Ok(serde_json::to_string(&FkOutput {
+        position: [t.x, t.y, t.z],
+        orientation_xyzw: [r.x, r.y, r.z, r.w],
+    })?)
 }
 
 /// Runs `causal-arm fk`.
@@ -91,12 +118,7 @@ pub fn run_fk(args: &FkArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn ik_solve(
-    model: &ArmModel,
-    text: &str,
-    down: bool,
-    seed: u64,
-) -> anyhow::Result<serde_json::Value> {
+fn ik_solve(model: &ArmModel, text: &str, down: bool, seed: u64) -> anyhow::Result<String> {
     let p = parse_numbers(text, "--position")?;
     let [x, y, z] = p[..] else {
         bail!("--position needs 3 values X,Y,Z, got {}", p.len());
@@ -113,13 +135,13 @@ fn ik_solve(
             ..IkOptions::default()
         },
     )?;
-    Ok(json!({
-        "ok": true,
-        "joints": sol.joints,
-        "error_m": sol.position_error_m,
-        "orientation_error_rad": sol.orientation_error_rad,
-        "attempts": sol.attempts,
-    }))
+    Ok(serde_json::to_string(&IkOutput {
+        ok: true,
+        joints: sol.joints,
+        error_m: sol.position_error_m,
+        orientation_error_rad: sol.orientation_error_rad,
+        attempts: sol.attempts,
+    })?)
 }
 
 /// Runs `causal-arm ik`.
@@ -134,7 +156,13 @@ pub fn run_ik(args: &IkArgs) -> anyhow::Result<()> {
                 continue;
             }
             let value = ik_solve(&model, &line, args.down, args.seed.wrapping_add(n as u64))
-                .unwrap_or_else(|e| json!({"ok": false, "error": format!("{e:#}")}));
+                .unwrap_or_else(|e| {
+                    serde_json::to_string(&IkFailure {
+                        ok: false,
+                        error: format!("{e:#}"),
+                    })
+                    .expect("a string serializes")
+                });
             writeln!(out, "{value}")?;
         }
     } else {

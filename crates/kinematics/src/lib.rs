@@ -384,7 +384,8 @@ impl ArmModel {
     ) -> Result<IkSolution, KinematicsError> {
         let mut rng = StdRng::seed_from_u64(options.seed);
         let mut best: Option<IkSolution> = None;
-        for attempt in 0..options.max_attempts {
+        let max_attempts = options.max_attempts.max(1);
+        for attempt in 0..max_attempts {
             let start: Vec<f64> = match (attempt, &options.initial) {
                 (0, Some(q0)) => {
                     self.count_ok(q0)?;
@@ -414,11 +415,11 @@ impl ArmModel {
                 return Ok(best.expect("just set"));
             }
         }
-        let best = best.expect("max_attempts >= 1");
+        let best = best.expect("at least one attempt ran");
         Err(KinematicsError::Unreachable {
             target: target.position,
             best_error_m: best.position_error_m,
-            attempts: options.max_attempts,
+            attempts: max_attempts,
         })
     }
 
@@ -541,7 +542,7 @@ pub struct IkOptions {
     pub initial: Option<Vec<f64>>,
     /// Seed of the random restarts.
     pub seed: u64,
-    /// Restarts before giving up.
+    /// Attempts (first start + random restarts) before giving up; 0 counts as 1.
     pub max_attempts: usize,
     /// Iterations per attempt.
     pub max_iterations: usize,
@@ -666,6 +667,9 @@ mod tests {
         let m = ArmModel::embedded();
         let mut rng = StdRng::seed_from_u64(42);
         let mut worst: f64 = 0.0;
+        let mut total_error = 0.0;
+        let mut attempts = Vec::new();
+        let started = std::time::Instant::now();
         for i in 0..1000 {
             let q = random_q(&m, &mut rng);
             let p = m.ef_pose(&q).unwrap().translation.vector;
@@ -681,8 +685,23 @@ mod tests {
                 .unwrap_or_else(|e| panic!("target {i}: {e}"));
             m.check_joints(&sol.joints).unwrap();
             let reached = m.ef_pose(&sol.joints).unwrap().translation.vector;
-            worst = worst.max((reached - p).norm());
+            let error = (reached - p).norm();
+            assert!(
+                (error - sol.position_error_m).abs() < 1e-12,
+                "reported error"
+            );
+            worst = worst.max(error);
+            total_error += error;
+            attempts.push(sol.attempts);
         }
+        let elapsed = started.elapsed();
+        let restarted = attempts.iter().filter(|&&a| a > 1).count();
+        println!(
+            "IK, 1000 targets: worst {worst:.2e} m, mean {:.2e} m, {restarted} needed restarts (max {} attempts), {:.1} ms total",
+            total_error / 1000.0,
+            attempts.iter().max().unwrap(),
+            elapsed.as_secs_f64() * 1e3
+        );
         assert!(worst < 1e-3, "worst error {worst} m");
     }
 
@@ -698,6 +717,86 @@ mod tests {
                 "{sol:?}"
             );
         }
+    }
+
+    /// The cube spawn area documented in urdf/README.md and urdf/table.urdf: table top at
+    /// z = 0.20 m, cube positions x 0.43..0.73 m, y -0.25..0.25 m. `ef` must reach every one
+    /// pointing down, from touching the 5 cm cube (top + 5 mm) to 0.2 m above it.
+    #[test]
+    fn pick_area_is_reachable_from_above() {
+        let m = ArmModel::embedded();
+        let cube_top = 0.20 + 0.05;
+        let mut worst: f64 = 0.0;
+        let mut checked = 0;
+        for ix in 0..=12 {
+            let x = 0.43 + 0.30 * ix as f64 / 12.0;
+            for iy in 0..=10 {
+                let y = -0.25 + 0.50 * iy as f64 / 10.0;
+                for dz in [0.005, 0.12, 0.2] {
+                    let target = IkTarget::pointing_down(x, y, cube_top + dz);
+                    let sol = m
+                        .inverse(&target, &IkOptions::default())
+                        .unwrap_or_else(|e| panic!("({x:.3}, {y:.3}, +{dz}): {e}"));
+                    assert!(sol.orientation_error_rad < 1e-3, "{sol:?}");
+                    worst = worst.max(sol.position_error_m);
+                    checked += 1;
+                }
+            }
+        }
+        assert!(worst < 1e-4, "worst {worst}");
+        assert_eq!(checked, 13 * 11 * 3);
+    }
+
+    #[test]
+    fn link_poses_cover_every_frame_of_the_chain() {
+        let m = ArmModel::embedded();
+        let q = [0.3, -0.4, 0.5, -0.6, 0.7, -0.8, 0.9];
+        let poses = m.link_poses(&q).unwrap();
+        let names: Vec<&str> = poses.iter().map(|(n, _)| *n).collect();
+        assert_eq!(
+            names,
+            [
+                "iiwa_link_0",
+                "iiwa_link_1",
+                "iiwa_link_2",
+                "iiwa_link_3",
+                "iiwa_link_4",
+                "iiwa_link_5",
+                "iiwa_link_6",
+                "iiwa_link_7",
+                "magnet",
+                "ef"
+            ]
+        );
+        assert_eq!(poses.last().unwrap().1, m.ef_pose(&q).unwrap());
+        // ef is 0.05 m along the magnet frame's z axis, which is link 7's z axis.
+        let link7 = poses[7].1;
+        let ef = poses[9].1;
+        let offset = link7.inverse() * ef;
+        assert!((offset.translation.vector - Vector3::new(0.0, 0.0, 0.095)).norm() < 1e-12);
+        assert!(offset.rotation.angle() < 1e-12);
+        // Joint 1 turns everything about the world z axis.
+        let mut q1 = q;
+        q1[0] += 0.25;
+        let turned = m.ef_pose(&q1).unwrap().translation.vector;
+        let expected =
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.25) * ef.translation.vector;
+        assert!((turned - expected).norm() < 1e-12);
+    }
+
+    #[test]
+    fn zero_attempts_still_tries_once() {
+        let m = ArmModel::embedded();
+        let sol = m
+            .inverse(
+                &IkTarget::position(0.5, 0.1, 0.6),
+                &IkOptions {
+                    max_attempts: 0,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+        assert!(sol.position_error_m < 1e-4);
     }
 
     #[test]
@@ -772,6 +871,28 @@ mod tests {
             .to_string();
         assert!(
             err.contains("expected 7 revolute joints") && err.contains("found 6"),
+            "{err}"
+        );
+        let prismatic = EMBEDDED_IIWA_URDF.replace(
+            "<joint name=\"iiwa_joint_4\" type=\"revolute\">",
+            "<joint name=\"iiwa_joint_4\" type=\"prismatic\">",
+        );
+        let err = ArmModel::from_urdf_str(&prismatic, "c.urdf")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("c.urdf: joint iiwa_joint_4 is Prismatic"),
+            "{err}"
+        );
+        let no_limits = EMBEDDED_IIWA_URDF.replace(
+            "<limit lower=\"-2.094\" upper=\"2.094\" effort=\"40\" velocity=\"2.321\"/>",
+            "<limit lower=\"2.094\" upper=\"-2.094\" effort=\"40\" velocity=\"2.321\"/>",
+        );
+        let err = ArmModel::from_urdf_str(&no_limits, "d.urdf")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("joint iiwa_joint_6 has limits [2.094, -2.094]"),
             "{err}"
         );
     }

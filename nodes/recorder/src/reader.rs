@@ -38,10 +38,26 @@ pub struct RawMessage {
     pub data: Vec<u8>,
 }
 
-/// A bag opened for reading; the MCAP file is held in memory.
+/// The file's bytes: memory-mapped, so paper-size bags (~1 GB) are not copied into RAM.
+enum Bytes {
+    Mapped(memmap2::Mmap),
+    Empty,
+}
+
+impl std::ops::Deref for Bytes {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        match self {
+            Bytes::Mapped(m) => m,
+            Bytes::Empty => &[],
+        }
+    }
+}
+
+/// A bag opened for reading (the MCAP file is memory-mapped; do not modify it while open).
 pub struct BagReader {
     mcap_path: PathBuf,
-    bytes: Vec<u8>,
+    bytes: Bytes,
     topics: Vec<TopicInfo>,
     truncation: Option<String>,
     message_count: u64,
@@ -79,11 +95,23 @@ impl BagReader {
     /// was killed) is read up to its last complete record; see [`BagReader::truncation`].
     pub fn open(path: &Path) -> Result<Self, BagError> {
         let mcap_path = find_mcap(path)?;
-        let bytes = std::fs::read(&mcap_path).map_err(|error| BagError::Io {
-            path: mcap_path.clone(),
-            action: "reading",
-            error,
-        })?;
+        let io = |action: &'static str| {
+            let path = mcap_path.clone();
+            move |error| BagError::Io {
+                path,
+                action,
+                error,
+            }
+        };
+        let file = std::fs::File::open(&mcap_path).map_err(io("opening"))?;
+        let len = file.metadata().map_err(io("reading metadata of"))?.len();
+        let bytes = if len == 0 {
+            Bytes::Empty
+        } else {
+            // SAFETY: the map is read-only; bags are written once and not modified while
+            // read (a writer still appending only adds bytes past the mapped length).
+            Bytes::Mapped(unsafe { memmap2::Mmap::map(&file) }.map_err(io("mapping"))?)
+        };
         let mut reader = Self {
             mcap_path,
             bytes,

@@ -136,7 +136,7 @@ impl Default for Exp2Config {
             min_clearance: 0.06,
             table_top_z: 0.20,
             cube_size: 0.05,
-            table_area: ([0.60, 0.0], [0.25, 0.35]),
+            table_area: ([0.58, 0.0], [0.15, 0.25]),
             seed: 0,
         }
     }

@@ -9,6 +9,8 @@
 //!   pushed back. This keeps joint tracking exact, deterministic and fast: physics only
 //!   integrates the cube (the one free body) and its contacts.
 //! - **Physics** is rapier3d at 240 Hz; each command runs for `substeps` steps (10).
+//!   The links' URDF cylinders become capsules of the same radius and length (see
+//!   [`LinkCylinders`]); the magnet tool keeps its exact cylinder.
 //! - **Magnet**: when on and the cube is within `capture_distance` of the `ef` tip it
 //!   grips the cube rigidly; when switched off it releases it with the tip's velocity and
 //!   the cube falls and settles under gravity and friction.
@@ -61,6 +63,25 @@ pub struct SimConfig {
     pub home: [f64; ARM_DOF],
     /// Seed of cube placement and colour.
     pub seed: u64,
+    /// Collision shape of the arm links' URDF cylinders (the magnet tool is always exact).
+    pub link_cylinders: LinkCylinders,
+}
+
+/// URDF link whose collision shape is always kept exact: the magnet tool touching the cube.
+pub const MAGNET_LINK: &str = "magnet";
+
+/// How the arm links' URDF cylinders become rapier colliders.
+///
+/// Cylinder–cube contacts go through GJK/EPA in parry, capsule–cube contacts have a
+/// closed form; with capsules exp2 generation runs 14.8k → 19.0k steps/s. The capsule
+/// keeps the cylinder's radius and overall length and rounds its ends, which only
+/// matters where a link edge brushes the cube.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LinkCylinders {
+    /// Capsules inscribed in the URDF cylinder's length (default, fast).
+    Capsules,
+    /// The URDF cylinders as they are.
+    Exact,
 }
 
 impl Default for SimConfig {
@@ -80,6 +101,7 @@ impl Default for SimConfig {
             friction: 0.8,
             home: [0.0, 0.5, 0.0, -1.2, 0.0, 0.8, 0.0],
             seed: 0,
+            link_cylinders: LinkCylinders::Capsules,
         }
     }
 }
@@ -195,7 +217,11 @@ fn urdf_pose(pose: &urdf_rs::Pose) -> Isometry3<f64> {
 }
 
 /// Collider for a URDF geometry, in the link frame (rapier cylinders run along y, URDF's along z).
-fn collider_for(geometry: &urdf_rs::Geometry, origin: &Isometry3<f64>) -> Option<ColliderBuilder> {
+fn collider_for(
+    geometry: &urdf_rs::Geometry,
+    origin: &Isometry3<f64>,
+    cylinders: LinkCylinders,
+) -> Option<ColliderBuilder> {
     let (builder, local) = match geometry {
         urdf_rs::Geometry::Box { size } => (
             ColliderBuilder::cuboid(
@@ -206,7 +232,15 @@ fn collider_for(geometry: &urdf_rs::Geometry, origin: &Isometry3<f64>) -> Option
             Isometry3::identity(),
         ),
         urdf_rs::Geometry::Cylinder { radius, length } => (
-            ColliderBuilder::cylinder(*length as f32 / 2.0, *radius as f32),
+            match cylinders {
+                LinkCylinders::Exact => {
+                    ColliderBuilder::cylinder(*length as f32 / 2.0, *radius as f32)
+                }
+                LinkCylinders::Capsules => ColliderBuilder::capsule_y(
+                    (*length as f32 / 2.0 - *radius as f32).max(0.0),
+                    *radius as f32,
+                ),
+            },
             Isometry3::rotation(Vector3::x() * std::f64::consts::FRAC_PI_2),
         ),
         urdf_rs::Geometry::Sphere { radius } => {
@@ -269,7 +303,15 @@ impl Simulator {
             let shapes: Vec<ColliderBuilder> = link
                 .collision
                 .iter()
-                .filter_map(|c| collider_for(&c.geometry, &urdf_pose(&c.origin)))
+                .filter_map(|c| {
+                    // The tool's flat face is what touches the cube: always exact.
+                    let cylinders = if link.name == MAGNET_LINK {
+                        LinkCylinders::Exact
+                    } else {
+                        config.link_cylinders
+                    };
+                    collider_for(&c.geometry, &urdf_pose(&c.origin), cylinders)
+                })
                 .collect();
             if shapes.is_empty() {
                 continue;

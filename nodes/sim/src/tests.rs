@@ -168,3 +168,29 @@ fn episodes_randomise_cube_and_colour() {
     .state();
     assert_eq!(again, a);
 }
+
+/// Shape kinds of every collider, to check which URDF cylinders became capsules.
+fn shape_kinds(sim: &Simulator) -> (usize, usize) {
+    let (mut capsules, mut cylinders) = (0, 0);
+    for (_, collider) in sim.world.colliders.iter() {
+        let shape = collider.shape();
+        capsules += shape.as_capsule().is_some() as usize;
+        cylinders += shape.as_cylinder().is_some() as usize;
+    }
+    (capsules, cylinders)
+}
+
+#[test]
+fn link_cylinders_become_capsules_except_the_magnet() {
+    let fast = Simulator::new(SimConfig::default()).unwrap();
+    let exact = Simulator::new(SimConfig {
+        link_cylinders: LinkCylinders::Exact,
+        ..SimConfig::default()
+    })
+    .unwrap();
+    let (fast_capsules, fast_cylinders) = shape_kinds(&fast);
+    let (exact_capsules, exact_cylinders) = shape_kinds(&exact);
+    assert_eq!(exact_capsules, 0);
+    assert_eq!(fast_cylinders, 1, "only the magnet tool stays a cylinder");
+    assert_eq!(fast_capsules + fast_cylinders, exact_cylinders);
+}

@@ -1,0 +1,239 @@
+use candle_core::{DType, Var};
+use candle_nn::{AdamW, Optimizer as _, ParamsAdamW};
+
+use super::*;
+use crate::{Head, MlpSpec, Regressor, Standardizer};
+
+fn spec() -> MlpSpec {
+    MlpSpec {
+        inputs: 5,
+        hidden: vec![16, 12],
+        heads: vec![
+            Head {
+                name: "a".into(),
+                size: 3,
+            },
+            Head {
+                name: "b".into(),
+                size: 1,
+            },
+        ],
+    }
+}
+
+fn data(rows: usize, seed: u64) -> (Vec<f32>, Vec<f32>) {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let x: Vec<f32> = (0..rows * 5)
+        .map(|_| rand::Rng::random_range(&mut rng, -1.0..1.0))
+        .collect();
+    let y = x
+        .chunks(5)
+        .flat_map(|r| [r[0].sin(), r[1] * r[2], r[3] - r[4], 10.0 * r[0] * r[0]])
+        .collect();
+    (x, y)
+}
+
+/// Reference loss through candle's autograd on the same parameters.
+fn autograd_loss(vars: &[(Var, Var)], x: &Tensor, y: &Tensor, weight: &Tensor) -> Tensor {
+    let mut h = x.clone();
+    for (i, (w, b)) in vars.iter().enumerate() {
+        h = h
+            .matmul(&w.as_tensor().t().unwrap())
+            .unwrap()
+            .broadcast_add(b.as_tensor())
+            .unwrap();
+        if i + 1 < vars.len() {
+            h = h.tanh().unwrap();
+        }
+    }
+    let rows = x.dims2().unwrap().0 as f64;
+    ((h - y)
+        .unwrap()
+        .sqr()
+        .unwrap()
+        .broadcast_mul(weight)
+        .unwrap()
+        .sum_all()
+        .unwrap()
+        / rows)
+        .unwrap()
+}
+
+fn vars_of(mlp: &Mlp) -> Vec<(Var, Var)> {
+    mlp.layers()
+        .iter()
+        .map(|l| {
+            (
+                Var::from_tensor(&l.weight).unwrap(),
+                Var::from_tensor(&l.bias).unwrap(),
+            )
+        })
+        .collect()
+}
+
+fn max_abs_diff(a: &Tensor, b: &Tensor) -> f32 {
+    (a - b)
+        .unwrap()
+        .abs()
+        .unwrap()
+        .flatten_all()
+        .unwrap()
+        .max(0)
+        .unwrap()
+        .to_scalar::<f32>()
+        .unwrap()
+}
+
+#[test]
+fn gradients_match_candle_autograd() {
+    let mlp = Mlp::new(spec(), 7).unwrap();
+    let fitter = Fitter::new(mlp.clone(), TrainConfig::default()).unwrap();
+    let (x, y) = data(33, 1);
+    let xt = Tensor::from_vec(x, (33, 5), &Device::Cpu).unwrap();
+    let yt = Tensor::from_vec(y, (33, 4), &Device::Cpu).unwrap();
+    let (loss, grads) = fitter.loss_and_gradients(&xt, &yt).unwrap();
+    let vars = vars_of(&mlp);
+    let reference = autograd_loss(&vars, &xt, &yt, &fitter.column_weight);
+    assert!((reference.to_scalar::<f32>().unwrap() as f64 - loss).abs() < 1e-5 * loss.max(1.0));
+    let store = reference.backward().unwrap();
+    for ((w, b), (dw, db)) in vars.iter().zip(&grads) {
+        let rw = store.get(w.as_tensor()).unwrap();
+        let rb = store.get(b.as_tensor()).unwrap();
+        assert!(
+            max_abs_diff(rw, dw) < 1e-5,
+            "weight gradient differs by {}",
+            max_abs_diff(rw, dw)
+        );
+        assert!(
+            max_abs_diff(rb, db) < 1e-5,
+            "bias gradient differs by {}",
+            max_abs_diff(rb, db)
+        );
+    }
+}
+
+#[test]
+fn adamw_steps_match_candle_nn() {
+    let mlp = Mlp::new(spec(), 3).unwrap();
+    let config = TrainConfig {
+        optimizer: Optimizer::AdamW {
+            weight_decay: 0.004,
+        },
+        learning_rate: 1e-2,
+        batch_size: 64,
+        seed: 5,
+    };
+    let mut fitter = Fitter::new(mlp.clone(), config).unwrap();
+    let vars = vars_of(&mlp);
+    let mut reference = AdamW::new(
+        vars.iter()
+            .flat_map(|(w, b)| [w.clone(), b.clone()])
+            .collect(),
+        ParamsAdamW {
+            lr: 1e-2,
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-8,
+            weight_decay: 0.004,
+        },
+    )
+    .unwrap();
+    let (x, y) = data(64, 2);
+    let xt = Tensor::from_vec(x.clone(), (64, 5), &Device::Cpu).unwrap();
+    let yt = Tensor::from_vec(y.clone(), (64, 4), &Device::Cpu).unwrap();
+    for _ in 0..5 {
+        // One batch holding every row: the shuffle does not change the gradient.
+        fitter.epoch(&x, &y, |_| {}).unwrap();
+        let loss = autograd_loss(&vars, &xt, &yt, &fitter.column_weight);
+        reference.backward_step(&loss).unwrap();
+    }
+    for (layer, (w, b)) in fitter.mlp().layers().iter().zip(&vars) {
+        assert!(max_abs_diff(&layer.weight, w.as_tensor()) < 1e-5);
+        assert!(max_abs_diff(&layer.bias, b.as_tensor()) < 1e-5);
+    }
+}
+
+#[test]
+fn training_fits_a_smooth_function_reproducibly() {
+    let (x, y) = data(2000, 4);
+    let mut out = Standardizer::fit(&y, 4);
+    let mut ys = y.clone();
+    out.apply_in_place(&mut ys);
+    let run = || {
+        let mut fitter = Fitter::new(
+            Mlp::new(spec(), 11).unwrap(),
+            TrainConfig {
+                batch_size: 32,
+                ..TrainConfig::default()
+            },
+        )
+        .unwrap();
+        let before = fitter.loss(&x, &ys).unwrap();
+        for _ in 0..40 {
+            fitter.epoch(&x, &ys, |_| {}).unwrap();
+        }
+        (before, fitter.loss(&x, &ys).unwrap(), fitter.into_mlp())
+    };
+    let (before, after, mlp) = run();
+    assert!(after < 0.05 * before, "loss {before} -> {after}");
+    let (_, again, _) = run();
+    assert_eq!(after, again, "same seed, same result");
+
+    // Save and load through safetensors: same raw predictions.
+    out = Standardizer::fit(&y, 4);
+    let model = Regressor {
+        mlp,
+        input: Standardizer::identity(5),
+        output: out,
+    };
+    let dir = std::env::temp_dir().join(format!("mlp-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("m.safetensors");
+    model.save(&path).unwrap();
+    let loaded = Regressor::load(spec(), &path).unwrap();
+    assert_eq!(
+        model.predict(&x[..50]).unwrap(),
+        loaded.predict(&x[..50]).unwrap()
+    );
+    let wrong = MlpSpec {
+        hidden: vec![16, 13],
+        ..spec()
+    };
+    let err = Regressor::load(wrong, &path).unwrap_err().to_string();
+    assert!(
+        err.contains("layers.1.weight") && err.contains("[13, 16]"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_shapes_are_refused() {
+    let mut fitter = Fitter::new(Mlp::new(spec(), 0).unwrap(), TrainConfig::default()).unwrap();
+    let err = fitter
+        .epoch(&[0.0; 9], &[0.0; 4], |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("5 inputs"), "{err}");
+    let model = Regressor {
+        mlp: fitter.into_mlp(),
+        input: Standardizer::identity(5),
+        output: Standardizer::identity(4),
+    };
+    assert!(
+        model
+            .predict(&[1.0; 7])
+            .unwrap_err()
+            .to_string()
+            .contains("multiple of the 5")
+    );
+    let bad = MlpSpec {
+        hidden: vec![0],
+        ..spec()
+    };
+    assert!(Mlp::new(bad, 0).is_err());
+    assert_eq!(
+        Tensor::zeros(1, DType::F32, &Device::Cpu).unwrap().dims(),
+        [1]
+    );
+}

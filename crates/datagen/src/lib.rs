@@ -131,7 +131,42 @@ pub struct GenerateOptions {
     pub exp2: Exp2Config,
 }
 
+/// `custom_data` keys a dataset bag carries (see [`GenerateOptions::bag_custom_data`]).
+pub mod bag_keys {
+    /// `exp1` or `exp2`.
+    pub const EXPERIMENT: &str = "causal_arm.experiment";
+    /// Babbling seed.
+    pub const SEED: &str = "causal_arm.seed";
+    /// Episodes in the run.
+    pub const EPISODES: &str = "causal_arm.episodes";
+    /// Steps per episode.
+    pub const STEPS_PER_EPISODE: &str = "causal_arm.steps_per_episode";
+    /// Exp 1 babbling spread, rad.
+    pub const SIGMA: &str = "causal_arm.sigma";
+}
+
 impl GenerateOptions {
+    /// What the bag records about its run, so the trainer can check a bag is the
+    /// experiment it is asked to learn.
+    pub fn bag_custom_data(&self) -> std::collections::BTreeMap<String, String> {
+        let mut data = std::collections::BTreeMap::from([
+            (bag_keys::EXPERIMENT.to_owned(), self.experiment.to_string()),
+            (bag_keys::SEED.to_owned(), self.seed.to_string()),
+            (
+                bag_keys::EPISODES.to_owned(),
+                self.plan.episodes.to_string(),
+            ),
+            (
+                bag_keys::STEPS_PER_EPISODE.to_owned(),
+                self.plan.steps_per_episode.to_string(),
+            ),
+        ]);
+        if self.experiment == Experiment::Exp1 {
+            data.insert(bag_keys::SIGMA.to_owned(), self.exp1.sigma.to_string());
+        }
+        data
+    }
+
     /// Defaults for `experiment` with `plan`, `seed` and `out`.
     pub fn new(experiment: Experiment, plan: RunPlan, seed: u64, out: impl Into<PathBuf>) -> Self {
         Self {
@@ -334,11 +369,16 @@ pub struct BagSink {
 
 impl BagSink {
     /// Creates the bag and registers the graph's topics with their offered QoS.
-    pub fn create(dir: &Path, overwrite: bool) -> Result<Self, GenerateError> {
+    pub fn create(
+        dir: &Path,
+        overwrite: bool,
+        options: &GenerateOptions,
+    ) -> Result<Self, GenerateError> {
         let mut writer = BagWriter::create(
             dir,
             BagOptions {
                 overwrite,
+                custom_data: options.bag_custom_data(),
                 ..BagOptions::default()
             },
         )?;
@@ -403,7 +443,7 @@ pub fn generate(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<GenerateSummary, GenerateError> {
     validate(options)?;
-    let mut sink = BagSink::create(&options.out, options.overwrite)?;
+    let mut sink = BagSink::create(&options.out, options.overwrite, options)?;
     let steps = run(options, &mut sink, progress)?;
     let messages = sink.messages;
     let summary = sink.finish()?;

@@ -106,7 +106,11 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let description = node.subscription::<RosString>(topics::ROBOT_DESCRIPTION, qos::latched())?;
     let ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
 
-    let mut sink = BagSink::create(&PathBuf::from(&output), node.params().bool("overwrite"))?;
+    let mut sink = BagSink::create(
+        &PathBuf::from(&output),
+        node.params().bool("overwrite"),
+        &run.options,
+    )?;
     let total = run.options.plan.total_steps();
     let mut buffers: BTreeMap<u64, StepBuffer> = BTreeMap::new();
     let mut have_description = false;

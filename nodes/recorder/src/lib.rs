@@ -14,7 +14,10 @@ mod reader;
 mod writer;
 
 pub use reader::{BagReader, RawMessage, TopicInfo};
-pub use writer::{BagOptions, BagSummary, BagWriter, Compression, existing_bag, offered_qos_yaml};
+pub use writer::{
+    BAG_METADATA_NAME, BagOptions, BagSummary, BagWriter, Compression, existing_bag,
+    offered_qos_yaml,
+};
 
 use std::path::PathBuf;
 

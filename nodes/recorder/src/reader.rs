@@ -234,6 +234,30 @@ impl BagReader {
             }))
     }
 
+    /// What the writer said produced the bag ([`crate::BagOptions::custom_data`]): read
+    /// from the metadata record at the start of the file, so crashed bags have it too.
+    /// Empty for bags written by other tools.
+    pub fn custom_data(&self) -> BTreeMap<String, String> {
+        let Ok(records) = mcap::read::LinearReader::new_with_options(
+            &self.bytes,
+            enum_set!(mcap::read::Options::IgnoreEndMagic),
+        ) else {
+            return BTreeMap::new();
+        };
+        for record in records {
+            match record {
+                Ok(mcap::records::Record::Metadata(m)) if m.name == crate::BAG_METADATA_NAME => {
+                    return m.metadata;
+                }
+                // Our writer puts the record before any data; stop at the first chunk.
+                Ok(mcap::records::Record::Chunk { .. } | mcap::records::Record::Message { .. })
+                | Err(_) => break,
+                Ok(_) => {}
+            }
+        }
+        BTreeMap::new()
+    }
+
     /// Decodes `raw` as `M`, checking the stored type.
     pub fn decode<M: RosMessage>(&self, raw: &RawMessage) -> Result<M, BagError> {
         if raw.ros_type != M::ROS_TYPE {

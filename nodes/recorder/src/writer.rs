@@ -31,7 +31,14 @@ pub struct BagOptions {
     pub chunk_size: u64,
     /// Replace an existing bag in the directory.
     pub overwrite: bool,
+    /// What produced the bag (experiment, seed, plan): stored in `metadata.yaml`'s
+    /// `custom_data` and as an MCAP metadata record named [`BAG_METADATA_NAME`] at the
+    /// start of the file, so even a bag cut short by a crash says what it holds.
+    pub custom_data: BTreeMap<String, String>,
 }
+
+/// Name of the MCAP metadata record carrying [`BagOptions::custom_data`].
+pub const BAG_METADATA_NAME: &str = "causal_arm";
 
 impl Default for BagOptions {
     fn default() -> Self {
@@ -39,6 +46,7 @@ impl Default for BagOptions {
             compression: Compression::Zstd,
             chunk_size: 786_432,
             overwrite: false,
+            custom_data: BTreeMap::new(),
         }
     }
 }
@@ -95,6 +103,7 @@ pub struct BagWriter {
     topics: BTreeMap<String, TopicEntry>,
     first_ns: Option<u64>,
     last_ns: u64,
+    custom_data: BTreeMap<String, String>,
 }
 
 fn io<'a>(path: &'a Path, action: &'static str) -> impl FnOnce(std::io::Error) -> BagError + 'a {
@@ -149,7 +158,7 @@ impl BagWriter {
             Compression::Lz4 => Some(mcap::Compression::Lz4),
             Compression::None => None,
         };
-        let writer = mcap::WriteOptions::new()
+        let mut writer = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("causal-arm ", env!("CARGO_PKG_VERSION")))
             .compression(compression)
@@ -159,9 +168,21 @@ impl BagWriter {
                 path: mcap_path.clone(),
                 message: e.to_string(),
             })?;
+        if !options.custom_data.is_empty() {
+            writer
+                .write_metadata(&mcap::records::Metadata {
+                    name: BAG_METADATA_NAME.to_owned(),
+                    metadata: options.custom_data.clone(),
+                })
+                .map_err(|e| BagError::Mcap {
+                    path: mcap_path.clone(),
+                    message: e.to_string(),
+                })?;
+        }
         Ok(Self {
             dir: dir.to_owned(),
             mcap_path,
+            custom_data: options.custom_data,
             writer: Some(writer),
             topics: BTreeMap::new(),
             first_ns: None,
@@ -374,7 +395,7 @@ impl BagWriter {
                 },
                 message_count: summary.message_count,
             }],
-            custom_data: BTreeMap::new(),
+            custom_data: self.custom_data.clone(),
             ros_distro: "jazzy".to_owned(),
         };
         let text = serde_norway::to_string(&Metadata {

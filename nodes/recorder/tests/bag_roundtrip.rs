@@ -31,6 +31,7 @@ fn write_bag(dir: &std::path::Path, n: u64, chunk: u64) -> causal_arm_recorder::
         dir,
         BagOptions {
             chunk_size: chunk,
+            custom_data: [("causal_arm.experiment".to_owned(), "exp1".to_owned())].into(),
             ..BagOptions::default()
         },
     )
@@ -82,6 +83,8 @@ fn written_messages_read_back_identically() {
         meta.contains("storage_identifier: mcap") && meta.contains("message_count: 1500"),
         "{meta}"
     );
+    assert!(meta.contains("causal_arm.experiment: exp1"), "{meta}");
+    assert_eq!(r.custom_data()["causal_arm.experiment"], "exp1");
 }
 
 #[test]
@@ -167,6 +170,11 @@ fn truncated_files_yield_a_prefix() {
         std::fs::write(&file, &bytes[..cut]).unwrap();
         let r = BagReader::open(&file).unwrap();
         assert!(r.truncation().is_some(), "cut at {cut} should be reported");
+        assert_eq!(
+            r.custom_data()["causal_arm.experiment"],
+            "exp1",
+            "cut at {cut}"
+        );
         let n = r.messages().filter(|m| m.is_ok()).count() as u64;
         assert_eq!(n, r.message_count());
         assert!(n >= last, "longer prefixes hold more messages");

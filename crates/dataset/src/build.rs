@@ -1,0 +1,397 @@
+//! Joining a bag's messages by stamp into simulator steps, then steps into transitions.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use causal_arm_datagen::bag_keys;
+use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
+use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
+use causal_arm_msgs::sensor_msgs::msg::JointState;
+use causal_arm_recorder::{BagReader, RawMessage};
+use causal_arm_sim::ros::{ns_from_time, topics};
+use nalgebra::{Quaternion, UnitQuaternion};
+
+use crate::{ActionSource, Dataset, DatasetError, Experiment, state_names};
+
+/// Where rows of a dataset came from (stored in model files for provenance).
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct BagSource {
+    /// Bag directory as given.
+    pub path: String,
+    /// BLAKE3 of the MCAP file, hex.
+    pub blake3: String,
+    /// Transitions taken from it.
+    pub rows: usize,
+}
+
+/// Topics a step needs, in the order used in messages.
+const STEP_TOPICS: [&str; 6] = [
+    topics::JOINT_STATES,
+    topics::EF_POSE,
+    topics::OBJECT_POSE,
+    topics::OBJECT_COLOR,
+    topics::MAGNET_STATE,
+    topics::ACTION,
+];
+
+/// What one simulator step contributed, kept compact (2M steps for the paper's exp 2).
+#[derive(Debug, Clone, Default)]
+struct Partial {
+    theta: Option<[f64; 7]>,
+    ef: Option<[f64; 6]>,
+    object: Option<[f64; 6]>,
+    colour: Option<[f32; 3]>,
+    magnet_on: Option<bool>,
+    action: Option<(u32, u32, [f64; 7], i8)>,
+}
+
+impl Partial {
+    fn missing(&self) -> Vec<&'static str> {
+        let present = [
+            self.theta.is_some(),
+            self.ef.is_some(),
+            self.object.is_some(),
+            self.colour.is_some(),
+            self.magnet_on.is_some(),
+            self.action.is_some(),
+        ];
+        STEP_TOPICS
+            .iter()
+            .zip(present)
+            .filter(|(_, p)| !p)
+            .map(|(t, _)| *t)
+            .collect()
+    }
+}
+
+/// One complete step.
+#[derive(Debug, Clone)]
+struct Step {
+    stamp: u64,
+    theta: [f64; 7],
+    ef: [f64; 6],
+    object: [f64; 6],
+    colour: [f32; 3],
+    magnet_on: bool,
+    episode: u32,
+    step: u32,
+    commanded: [f64; 7],
+    magnet_command: i8,
+}
+
+impl Step {
+    fn state(&self, experiment: Experiment, out: &mut Vec<f32>) {
+        match experiment {
+            Experiment::Exp1 => {
+                out.extend(self.theta.iter().map(|&v| v as f32));
+                out.extend(self.ef[..3].iter().map(|&v| v as f32));
+            }
+            Experiment::Exp2 => {
+                out.extend(self.object.iter().map(|&v| v as f32));
+                out.extend(self.colour);
+                out.extend(self.theta.iter().map(|&v| v as f32));
+                out.extend(self.ef.iter().map(|&v| v as f32));
+                out.push(if self.magnet_on { 1.0 } else { 0.0 });
+            }
+        }
+    }
+}
+
+/// Position and Euler angles (roll, pitch, yaw about fixed x, y, z, as PyBullet reports).
+fn pose6(pose: &PoseStamped) -> [f64; 6] {
+    let p = &pose.pose.position;
+    let o = &pose.pose.orientation;
+    let (roll, pitch, yaw) =
+        UnitQuaternion::from_quaternion(Quaternion::new(o.w, o.x, o.y, o.z)).euler_angles();
+    [p.x, p.y, p.z, roll, pitch, yaw]
+}
+
+fn seven(values: &[f64], what: &str, stamp: u64) -> Result<[f64; 7], String> {
+    values.try_into().map_err(|_| {
+        format!(
+            "{what} at stamp {stamp} ns has {} values, expected 7",
+            values.len()
+        )
+    })
+}
+
+/// Reads one bag into steps, checking the step protocol.
+struct StepReader<'a> {
+    reader: &'a BagReader,
+    bag: PathBuf,
+    pending: BTreeMap<u64, Partial>,
+    steps: Vec<Step>,
+}
+
+impl StepReader<'_> {
+    fn content(&self, problem: String) -> DatasetError {
+        DatasetError::Content {
+            bag: self.bag.clone(),
+            problem,
+        }
+    }
+
+    fn add(&mut self, raw: &RawMessage) -> Result<(), DatasetError> {
+        let topic = raw.topic.as_str();
+        if !STEP_TOPICS.contains(&topic) {
+            return Ok(());
+        }
+        let stamp;
+        let mut update: Box<dyn FnMut(&mut Partial) -> bool> = match topic {
+            topics::JOINT_STATES => {
+                let m: JointState = self.reader.decode(raw)?;
+                stamp = ns_from_time(&m.header.stamp);
+                let theta = seven(&m.position, "/joint_states position", stamp)
+                    .map_err(|e| self.content(e))?;
+                Box::new(move |p| p.theta.replace(theta).is_some())
+            }
+            topics::EF_POSE | topics::OBJECT_POSE => {
+                let m: PoseStamped = self.reader.decode(raw)?;
+                stamp = ns_from_time(&m.header.stamp);
+                let pose = pose6(&m);
+                if topic == topics::EF_POSE {
+                    Box::new(move |p| p.ef.replace(pose).is_some())
+                } else {
+                    Box::new(move |p| p.object.replace(pose).is_some())
+                }
+            }
+            topics::OBJECT_COLOR => {
+                let m: ObjectColor = self.reader.decode(raw)?;
+                stamp = ns_from_time(&m.header.stamp);
+                let rgb = [m.color.r, m.color.g, m.color.b];
+                Box::new(move |p| p.colour.replace(rgb).is_some())
+            }
+            topics::MAGNET_STATE => {
+                let m: MagnetState = self.reader.decode(raw)?;
+                stamp = ns_from_time(&m.header.stamp);
+                Box::new(move |p| p.magnet_on.replace(m.on).is_some())
+            }
+            _ => {
+                let m: Action = self.reader.decode(raw)?;
+                stamp = ns_from_time(&m.header.stamp);
+                let deltas = seven(&m.joint_deltas, "/babbler/action joint_deltas", stamp)
+                    .map_err(|e| self.content(e))?;
+                let action = (m.episode, m.step, deltas, m.magnet);
+                Box::new(move |p| p.action.replace(action).is_some())
+            }
+        };
+        let partial = self.pending.entry(stamp).or_default();
+        if update(partial) {
+            return Err(self.content(format!("two {topic} messages with stamp {stamp} ns")));
+        }
+        if partial.missing().is_empty() {
+            let p = self.pending.remove(&stamp).expect("just inserted");
+            let (episode, step, commanded, magnet_command) = p.action.expect("complete");
+            self.steps.push(Step {
+                stamp,
+                theta: p.theta.expect("complete"),
+                ef: p.ef.expect("complete"),
+                object: p.object.expect("complete"),
+                colour: p.colour.expect("complete"),
+                magnet_on: p.magnet_on.expect("complete"),
+                episode,
+                step,
+                commanded,
+                magnet_command,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The experiment a bag holds: from the run's own record, else from its actions (exp 2
+/// switches the magnet and has episodes).
+fn experiment_of(reader: &BagReader, steps: &[Step]) -> (Experiment, String) {
+    if let Some(label) = reader.custom_data().get(bag_keys::EXPERIMENT)
+        && let Ok(exp) = label.parse::<Experiment>()
+    {
+        return (exp, format!("custom_data {}={label}", bag_keys::EXPERIMENT));
+    }
+    let magnet = steps.iter().any(|s| s.magnet_command != 0);
+    let episodes = steps.iter().any(|s| s.episode > 0);
+    if magnet || episodes {
+        (
+            Experiment::Exp2,
+            "its actions switch the magnet or change episode".into(),
+        )
+    } else {
+        (
+            Experiment::Exp1,
+            "no magnet commands and one episode".into(),
+        )
+    }
+}
+
+/// BLAKE3 of a file, hex (the cache key and the provenance of a model).
+pub(crate) fn hash_file(path: &Path) -> Result<String, DatasetError> {
+    let mut hasher = blake3::Hasher::new();
+    let file = std::fs::File::open(path).map_err(|e| DatasetError::Cache {
+        path: path.to_owned(),
+        problem: format!("cannot read for hashing: {e}"),
+    })?;
+    hasher
+        .update_reader(file)
+        .map_err(|e| DatasetError::Cache {
+            path: path.to_owned(),
+            problem: format!("cannot read for hashing: {e}"),
+        })?;
+    Ok(hasher.finalize().to_hex().to_string())
+}
+
+/// Builds the transitions of one bag. `expected` refuses a bag of the other experiment;
+/// `None` accepts either and reports which in [`Dataset::experiment`].
+pub fn from_bag(
+    bag: &Path,
+    expected: Option<Experiment>,
+    action_source: ActionSource,
+) -> Result<Dataset, DatasetError> {
+    let reader = BagReader::open(bag)?;
+    if let (Some(expected), Some(label)) =
+        (expected, reader.custom_data().get(bag_keys::EXPERIMENT))
+    {
+        // Refuse early, before decoding millions of messages.
+        if label
+            .parse::<Experiment>()
+            .is_ok_and(|found| found != expected)
+        {
+            return Err(DatasetError::WrongExperiment {
+                bag: bag.to_owned(),
+                found: label.parse().expect("checked"),
+                expected,
+                how: format!("custom_data {}={label}", bag_keys::EXPERIMENT),
+            });
+        }
+    }
+    let mut steps = StepReader {
+        reader: &reader,
+        bag: bag.to_owned(),
+        pending: BTreeMap::new(),
+        steps: Vec::new(),
+    };
+    for raw in reader.messages() {
+        steps.add(&raw?)?;
+    }
+    let content = |problem: String| DatasetError::Content {
+        bag: bag.to_owned(),
+        problem,
+    };
+    for topic in STEP_TOPICS {
+        if !reader
+            .topics()
+            .iter()
+            .any(|t| t.name == topic && t.message_count > 0)
+        {
+            return Err(content(format!("no messages on {topic}")));
+        }
+    }
+    let StepReader {
+        pending,
+        steps: mut all,
+        ..
+    } = steps;
+    all.sort_by_key(|s| s.stamp);
+    let last_complete = all.last().map(|s| s.stamp).unwrap_or(0);
+    for (stamp, partial) in &pending {
+        // A crashed writer may leave the last step half-written; anything else is a hole.
+        if reader.truncation().is_some() && *stamp > last_complete {
+            tracing::warn!(
+                "{}: dropping the incomplete last step at {stamp} ns (bag was cut short; missing {})",
+                bag.display(),
+                partial.missing().join(", ")
+            );
+            continue;
+        }
+        return Err(content(format!(
+            "step at stamp {stamp} ns has no message on {}",
+            partial.missing().join(", ")
+        )));
+    }
+    if all.len() < 2 {
+        return Err(content(format!(
+            "{} complete steps; need at least 2 for one transition",
+            all.len()
+        )));
+    }
+    let (experiment, how) = experiment_of(&reader, &all);
+    if let Some(expected) = expected
+        && expected != experiment
+    {
+        return Err(DatasetError::WrongExperiment {
+            bag: bag.to_owned(),
+            found: experiment,
+            expected,
+            how,
+        });
+    }
+
+    let period = all[1].stamp - all[0].stamp;
+    let width = state_names(experiment).len();
+    let mut data = Dataset {
+        experiment,
+        action_source,
+        states: Vec::with_capacity(all.len() * width),
+        actions: Vec::new(),
+        next_states: Vec::with_capacity(all.len() * width),
+        episodes: Vec::with_capacity(all.len()),
+        steps: Vec::with_capacity(all.len()),
+        stamps_ns: Vec::with_capacity(all.len()),
+        sources: Vec::new(),
+    };
+    for pair in all.windows(2) {
+        let (now, next) = (&pair[0], &pair[1]);
+        let dt = next.stamp - now.stamp;
+        if dt.abs_diff(period) > period / 100 + 1 {
+            return Err(content(format!(
+                "gap on {}: stamp {} ns follows {} ns, expected a step of {period} ns",
+                topics::JOINT_STATES,
+                next.stamp,
+                now.stamp
+            )));
+        }
+        if next.episode != now.episode {
+            if next.step != 0 || next.episode != now.episode + 1 {
+                return Err(content(format!(
+                    "{} at stamp {} ns: episode {} step {} follows episode {} step {}",
+                    topics::ACTION,
+                    next.stamp,
+                    next.episode,
+                    next.step,
+                    now.episode,
+                    now.step
+                )));
+            }
+            // The reset between episodes is not a transition.
+            continue;
+        }
+        if next.step != now.step + 1 {
+            return Err(content(format!(
+                "{} at stamp {} ns: step {} follows step {} in episode {}",
+                topics::ACTION,
+                next.stamp,
+                next.step,
+                now.step,
+                now.episode
+            )));
+        }
+        now.state(experiment, &mut data.states);
+        next.state(experiment, &mut data.next_states);
+        match action_source {
+            ActionSource::Realized => data
+                .actions
+                .extend((0..7).map(|j| (next.theta[j] - now.theta[j]) as f32)),
+            ActionSource::Commanded => data.actions.extend(now.commanded.iter().map(|&v| v as f32)),
+        }
+        if experiment == Experiment::Exp2 {
+            data.actions.push(now.magnet_command as f32);
+        }
+        data.episodes.push(now.episode);
+        data.steps.push(now.step);
+        data.stamps_ns.push(now.stamp);
+    }
+    data.sources.push(BagSource {
+        path: bag.display().to_string(),
+        blake3: hash_file(reader.path())?,
+        rows: data.rows(),
+    });
+    Ok(data)
+}

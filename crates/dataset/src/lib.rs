@@ -1,0 +1,181 @@
+//! The learning data of the paper, built from experiment bags: transitions
+//! (s(t), a(t), s(t+1)) joined by stamp, with feature names (DESIGN.md "Data model").
+//!
+//! A bag alone is a complete dataset: every state message of a simulator step carries the
+//! step's stamp and the babbler's action carries the stamp of the state it answers. The
+//! builder refuses bags with gaps, missing topics or the wrong experiment, naming bag,
+//! topic and stamp. Built tensors are cached by bag content hash ([`Cache`]) so training
+//! again does not decode millions of messages again.
+
+mod build;
+mod cache;
+mod features;
+
+pub use build::{BagSource, from_bag};
+pub use cache::{Cache, CacheOutcome, load_bags};
+pub use causal_arm_datagen::Experiment;
+pub use features::{FeatureGroup, action_names, state_groups, state_names, wrap_angle};
+
+use std::path::PathBuf;
+
+/// Which action vector a transition carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ActionSource {
+    /// θ(t+1) − θ(t), what the joints really did (the paper's definition).
+    #[default]
+    Realized,
+    /// The babbler's commanded deltas (target − position), before velocity limits.
+    Commanded,
+}
+
+impl std::str::FromStr for ActionSource {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "realized" => Ok(Self::Realized),
+            "commanded" => Ok(Self::Commanded),
+            other => Err(format!(
+                "unknown action source {other:?}: expected realized or commanded"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for ActionSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Realized => "realized",
+            Self::Commanded => "commanded",
+        })
+    }
+}
+
+/// Transitions of one experiment, row-major f32 matrices with one row per transition.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dataset {
+    /// Which experiment's data model the rows follow.
+    pub experiment: Experiment,
+    /// Where the actions come from.
+    pub action_source: ActionSource,
+    /// s(t), `[rows, state_width]`.
+    pub states: Vec<f32>,
+    /// a(t), `[rows, action_width]`.
+    pub actions: Vec<f32>,
+    /// s(t+1), `[rows, state_width]`.
+    pub next_states: Vec<f32>,
+    /// Episode of each row (trajectories never cross episodes).
+    pub episodes: Vec<u32>,
+    /// Step within the episode of s(t).
+    pub steps: Vec<u32>,
+    /// Sim-time stamp of s(t), ns.
+    pub stamps_ns: Vec<u64>,
+    /// Bags the rows came from, in row order.
+    pub sources: Vec<BagSource>,
+}
+
+impl Dataset {
+    /// Number of transitions.
+    pub fn rows(&self) -> usize {
+        self.episodes.len()
+    }
+
+    /// Width of s.
+    pub fn state_width(&self) -> usize {
+        state_names(self.experiment).len()
+    }
+
+    /// Width of a.
+    pub fn action_width(&self) -> usize {
+        action_names(self.experiment).len()
+    }
+
+    /// Row `i` of s(t).
+    pub fn state(&self, i: usize) -> &[f32] {
+        let w = self.state_width();
+        &self.states[i * w..(i + 1) * w]
+    }
+
+    /// Row `i` of a(t).
+    pub fn action(&self, i: usize) -> &[f32] {
+        let w = self.action_width();
+        &self.actions[i * w..(i + 1) * w]
+    }
+
+    /// Row `i` of s(t+1).
+    pub fn next_state(&self, i: usize) -> &[f32] {
+        let w = self.state_width();
+        &self.next_states[i * w..(i + 1) * w]
+    }
+
+    /// Appends `other` (same experiment and action source), renumbering its episodes
+    /// after ours so episodes from different bags stay distinct.
+    pub fn append(&mut self, other: Dataset) -> Result<(), DatasetError> {
+        if other.experiment != self.experiment {
+            return Err(DatasetError::Mixed(format!(
+                "{} holds {} data but {} holds {}",
+                other
+                    .sources
+                    .first()
+                    .map(|s| s.path.as_str())
+                    .unwrap_or("?"),
+                other.experiment,
+                self.sources.first().map(|s| s.path.as_str()).unwrap_or("?"),
+                self.experiment
+            )));
+        }
+        if other.action_source != self.action_source {
+            return Err(DatasetError::Mixed(
+                "datasets use different action sources".into(),
+            ));
+        }
+        let offset = self.episodes.iter().max().map(|e| e + 1).unwrap_or(0);
+        self.states.extend(other.states);
+        self.actions.extend(other.actions);
+        self.next_states.extend(other.next_states);
+        self.episodes
+            .extend(other.episodes.iter().map(|e| e + offset));
+        self.steps.extend(other.steps);
+        self.stamps_ns.extend(other.stamps_ns);
+        self.sources.extend(other.sources);
+        Ok(())
+    }
+}
+
+/// Why a dataset could not be built or loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum DatasetError {
+    /// The bag could not be read.
+    #[error(transparent)]
+    Bag(#[from] causal_arm_recorder::BagError),
+    /// The bag's content breaks the step protocol (gap, missing topic, bad message).
+    #[error("{bag}: {problem}")]
+    Content {
+        /// Bag directory or file.
+        bag: PathBuf,
+        /// What is wrong, with topic and stamp.
+        problem: String,
+    },
+    /// The bag holds the other experiment.
+    #[error("{bag}: holds {found} data ({how}), expected {expected}")]
+    WrongExperiment {
+        /// Bag directory or file.
+        bag: PathBuf,
+        /// What it holds.
+        found: Experiment,
+        /// What was asked for.
+        expected: Experiment,
+        /// How that was determined.
+        how: String,
+    },
+    /// Bags of different kinds were combined.
+    #[error("cannot combine bags: {0}")]
+    Mixed(String),
+    /// The cache could not be read or written.
+    #[error("dataset cache {path}: {problem}")]
+    Cache {
+        /// Cache file.
+        path: PathBuf,
+        /// What failed.
+        problem: String,
+    },
+}

@@ -6,6 +6,7 @@ mod kinematics_cmd;
 mod launch_cmd;
 mod play_cmd;
 mod topic_cmd;
+mod train_cmd;
 
 use causal_arm_node::RosArgs;
 use clap::{Parser, Subcommand};
@@ -38,6 +39,8 @@ enum Command {
     Play(play_cmd::PlayArgs),
     /// Publish or echo any known message type as JSON (like `ros2 topic`).
     Topic(topic_cmd::TopicArgs),
+    /// Cross-validate forward/inverse models on bags and write model files and metrics.
+    Train(train_cmd::TrainArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -58,6 +61,7 @@ fn main() -> std::process::ExitCode {
         Command::Launch(args) => launch_cmd::run(args, &ros_args),
         Command::Play(args) => play_cmd::run(args, &ros_args),
         Command::Topic(args) => topic_cmd::run(args, &ros_args),
+        Command::Train(args) => train_cmd::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,0 +1,294 @@
+//! `causal-arm train`: cross-validate the paper's models on bags and write model files.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Experiment, load_bags};
+use causal_arm_trainer::fit::Progress;
+use causal_arm_trainer::model_file::describe;
+use causal_arm_trainer::problems::FmTarget;
+use causal_arm_trainer::{Figure, ModelKind, Profile, TrainOptions, cross_validate, save_model};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+
+/// Arguments of `causal-arm train`.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Bag directory (repeat for several bags of one experiment).
+    #[arg(long = "bag", required = true)]
+    bags: Vec<PathBuf>,
+    /// fm, im-mono, im-pre, ablation, or all (every model of the bag's experiment).
+    #[arg(long, default_value = "all")]
+    model: String,
+    /// Epoch budgets: paper (60-4,000 epochs) or quick.
+    #[arg(long, default_value = "paper")]
+    profile: String,
+    /// Epochs of every network (overrides the profile).
+    #[arg(long)]
+    epochs: Option<usize>,
+    /// Cross-validation folds.
+    #[arg(long, default_value_t = 5)]
+    folds: usize,
+    /// Run only the first N folds (each still holds out 1/folds of the rows).
+    #[arg(long)]
+    max_folds: Option<usize>,
+    /// Refuse bags that are not this experiment (default: whatever the first bag holds).
+    #[arg(long)]
+    experiment: Option<String>,
+    /// Action vector: realized (θ(t+1) − θ(t), the paper's) or commanded deltas.
+    #[arg(long, default_value = "realized")]
+    action: String,
+    /// Forward-model output: delta (s(t+1) − s(t), added back) or absolute.
+    #[arg(long, default_value = "delta")]
+    fm_target: String,
+    /// FM hidden layer widths.
+    #[arg(long, value_delimiter = ',', default_value = "256,256,256")]
+    fm_hidden: Vec<usize>,
+    /// IM / base IM / pre-network hidden layer widths.
+    #[arg(long, value_delimiter = ',', default_value = "256,256,256,256")]
+    im_hidden: Vec<usize>,
+    /// Rows per mini-batch.
+    #[arg(long, default_value_t = 256)]
+    batch_size: usize,
+    /// Learning rate.
+    #[arg(long, default_value_t = 1e-3)]
+    lr: f64,
+    /// Seed of folds, weights and shuffles.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Dataset cache directory (default: $CAUSAL_ARM_CACHE or ~/.cache/causal-arm).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// Decode the bags even if a cached dataset exists, and do not cache.
+    #[arg(long)]
+    no_cache: bool,
+    /// Output directory for model files and metrics.json.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+fn bar_for(label: &str, epochs: usize, rows: usize) -> ProgressBar {
+    let bar = ProgressBar::new((epochs * rows) as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{prefix:>22} [{bar:25}] {msg} {per_sec} ETA {eta}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_prefix(label.to_owned());
+    bar.set_message(format!("epoch 0/{epochs}"));
+    bar
+}
+
+/// Formats an MAE with its unit.
+pub fn show(value: f64, unit: &str) -> String {
+    let number = if value != 0.0 && (value.abs() < 1e-2 || value.abs() >= 1e3) {
+        format!("{value:.3e}")
+    } else {
+        format!("{value:.4}")
+    };
+    if unit.is_empty() {
+        number
+    } else {
+        format!("{number} {unit}")
+    }
+}
+
+/// Prints the figures as a table next to the paper and the baseline.
+pub fn print_table(figures: &[Figure]) {
+    println!(
+        "{:<20} {:>26} {:>16} {:>14} {:>8}",
+        "figure", "ours (mean ± std)", "mean baseline", "paper", "≤ paper"
+    );
+    for f in figures {
+        let ours = format!("{} ± {}", show(f.mean, &f.unit), show(f.std, ""));
+        let paper = f
+            .paper
+            .map(|p| show(p, &f.unit))
+            .unwrap_or_else(|| "—".into());
+        let verdict = match f.paper {
+            Some(p) if f.mean <= p => "yes",
+            Some(_) => "no",
+            None => "",
+        };
+        println!(
+            "{:<20} {:>26} {:>16} {:>14} {:>8}",
+            f.key,
+            ours,
+            show(f.baseline, &f.unit),
+            paper,
+            verdict
+        );
+    }
+}
+
+/// Runs `causal-arm train`.
+pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
+    let profile: Profile = args.profile.parse().map_err(anyhow::Error::msg)?;
+    let action: ActionSource = args.action.parse().map_err(anyhow::Error::msg)?;
+    let fm_target: FmTarget = args.fm_target.parse().map_err(anyhow::Error::msg)?;
+    let expected: Option<Experiment> = args
+        .experiment
+        .as_deref()
+        .map(str::parse)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    let requested: Option<ModelKind> = match args.model.as_str() {
+        "all" => None,
+        other => Some(other.parse().map_err(anyhow::Error::msg)?),
+    };
+    if args.fm_hidden.is_empty()
+        || args.im_hidden.is_empty()
+        || args.fm_hidden.contains(&0)
+        || args.im_hidden.contains(&0)
+    {
+        bail!("hidden layer widths must be positive, e.g. --fm-hidden 256,256,256");
+    }
+    let options = TrainOptions {
+        profile,
+        epochs: args.epochs,
+        folds: args.folds,
+        fm_hidden: args.fm_hidden.clone(),
+        im_hidden: args.im_hidden.clone(),
+        batch_size: args.batch_size,
+        learning_rate: args.lr,
+        fm_target,
+        seed: args.seed,
+        max_folds: args.max_folds,
+    };
+
+    let start = Instant::now();
+    let cache =
+        (!args.no_cache).then(|| Cache::new(args.cache.clone().unwrap_or_else(Cache::default_dir)));
+    let (data, outcomes) = load_bags(&args.bags, expected, action, cache.as_ref())?;
+    for (bag, outcome) in args.bags.iter().zip(&outcomes) {
+        let how = match outcome {
+            CacheOutcome::Hit => "from cache",
+            CacheOutcome::Built => "decoded",
+        };
+        eprintln!("dataset: {} ({how})", bag.display());
+    }
+    eprintln!(
+        "dataset: {} {} transitions, s {} features, a {} features, {:.1} s",
+        data.rows(),
+        data.experiment,
+        data.state_width(),
+        data.action_width(),
+        start.elapsed().as_secs_f64()
+    );
+    let kinds = match requested {
+        Some(kind) => vec![kind],
+        None => ModelKind::all_for(data.experiment),
+    };
+
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let metrics_path = args.out.join("metrics.json");
+    let mut metrics: serde_json::Map<String, serde_json::Value> =
+        std::fs::read_to_string(&metrics_path)
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok())
+            .unwrap_or_default();
+    metrics.insert("experiment".into(), data.experiment.to_string().into());
+    metrics.insert("rows".into(), data.rows().into());
+    metrics.insert("sources".into(), serde_json::to_value(&data.sources)?);
+    let models_entry = metrics
+        .entry("models")
+        .or_insert_with(|| serde_json::Value::Object(Default::default()));
+
+    let mut all_figures = Vec::new();
+    for kind in kinds {
+        let mut bar: Option<ProgressBar> = None;
+        let mut epochs_planned = 0;
+        let mut on_progress = |p: Progress| match p {
+            Progress::Start {
+                label,
+                epochs,
+                rows,
+            } => {
+                if let Some(b) = bar.take() {
+                    b.finish_and_clear();
+                }
+                epochs_planned = epochs;
+                bar = Some(bar_for(&label, epochs, rows));
+            }
+            Progress::Rows(n) => {
+                if let Some(b) = &bar {
+                    b.inc(n as u64);
+                }
+            }
+            Progress::Epoch { epoch, loss } => {
+                if let Some(b) = &bar {
+                    b.set_message(format!("epoch {epoch}/{epochs_planned} loss {loss:.4}"));
+                }
+            }
+        };
+        let report = cross_validate(&data, kind, &options, &mut on_progress)?;
+        if let Some(b) = bar.take() {
+            b.finish_and_clear();
+        }
+        let folds_run = options
+            .max_folds
+            .unwrap_or(options.folds)
+            .min(options.folds);
+        for (name, model, problem, settings) in &report.models {
+            let meta = describe(
+                name,
+                data.experiment,
+                model,
+                problem,
+                settings,
+                format!(
+                    "fold 1 of {} ({} of {} rows)",
+                    options.folds,
+                    data.rows() - data.rows() / options.folds,
+                    data.rows()
+                ),
+                &data.sources,
+            );
+            let (weights, json) = save_model(&args.out, model, &meta)?;
+            eprintln!("wrote {} and {}", weights.display(), json.display());
+        }
+        for run in &report.runs {
+            eprintln!(
+                "  {}: {} epochs on {} rows in {:.1} s",
+                run.label, run.epochs, run.rows, run.wall_s
+            );
+        }
+        models_entry[kind.name()] = serde_json::json!({
+            "folds": options.folds,
+            "folds_run": folds_run,
+            "figures": report.figures,
+            "runs": report.runs,
+            "options": {
+                "profile": args.profile,
+                "fm_target": args.fm_target,
+                "action": args.action,
+                "batch_size": options.batch_size,
+                "learning_rate": options.learning_rate,
+                "fm_hidden": options.fm_hidden,
+                "im_hidden": options.im_hidden,
+                "seed": options.seed,
+            },
+        });
+        all_figures.extend(report.figures);
+    }
+    std::fs::write(
+        &metrics_path,
+        serde_json::to_string_pretty(&metrics)? + "\n",
+    )
+    .with_context(|| format!("cannot write {}", metrics_path.display()))?;
+    println!(
+        "{} on {} transitions ({} folds):",
+        data.experiment,
+        data.rows(),
+        options.folds
+    );
+    print_table(&all_figures);
+    eprintln!(
+        "wrote {} ({:.1} s in all)",
+        metrics_path.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}

@@ -1,0 +1,196 @@
+//! Fitting a problem on some rows and judging it on others.
+
+use causal_arm_dataset::wrap_angle;
+use causal_arm_mlp::{Fitter, Head, Mlp, MlpSpec, Regressor, Standardizer, TrainConfig};
+use rand::{SeedableRng, rngs::StdRng, seq::SliceRandom};
+use serde::{Deserialize, Serialize};
+
+use crate::TrainError;
+use crate::problems::{HeadInfo, Problem};
+
+/// Network size and training schedule of one model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitSettings {
+    /// Widths of the tanh hidden layers.
+    pub hidden: Vec<usize>,
+    /// Optimizer, learning rate, batch size, shuffle seed.
+    pub train: TrainConfig,
+    /// Passes over the training rows.
+    pub epochs: usize,
+}
+
+/// What long work reports as it goes.
+#[derive(Debug, Clone)]
+pub enum Progress {
+    /// A model starts training.
+    Start {
+        /// Model label (`fm`, `im_pre/pre`, …) and fold.
+        label: String,
+        /// Epochs planned.
+        epochs: usize,
+        /// Training rows per epoch.
+        rows: usize,
+    },
+    /// Rows processed in the current epoch.
+    Rows(usize),
+    /// An epoch finished.
+    Epoch {
+        /// Epochs done.
+        epoch: usize,
+        /// Mean training loss (standardised units).
+        loss: f64,
+    },
+}
+
+/// Rows `rows` of a row-major matrix.
+pub fn take_rows(data: &[f32], width: usize, rows: &[usize]) -> Vec<f32> {
+    let mut out = Vec::with_capacity(rows.len() * width);
+    for &r in rows {
+        out.extend_from_slice(&data[r * width..(r + 1) * width]);
+    }
+    out
+}
+
+/// Test rows of each of `k` folds of a seeded shuffle of `0..n` (the rest is training).
+pub fn folds(n: usize, k: usize, seed: u64) -> Vec<Vec<usize>> {
+    let mut order: Vec<usize> = (0..n).collect();
+    order.shuffle(&mut StdRng::seed_from_u64(seed));
+    (0..k)
+        .map(|f| order[f * n / k..(f + 1) * n / k].to_vec())
+        .collect()
+}
+
+/// The complement of `test` in `0..n`.
+pub fn training_rows(n: usize, test: &[usize]) -> Vec<usize> {
+    let mut is_test = vec![false; n];
+    for &t in test {
+        is_test[t] = true;
+    }
+    (0..n).filter(|&r| !is_test[r]).collect()
+}
+
+/// Trains a network for `problem` on `rows`, standardising inputs and targets with
+/// statistics of those rows only.
+pub fn fit(
+    problem: &Problem,
+    rows: &[usize],
+    settings: &FitSettings,
+    seed: u64,
+    label: &str,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Regressor, TrainError> {
+    let n_in = problem.input_names.len();
+    let n_out = problem.output_names.len();
+    let mut x = take_rows(&problem.inputs, n_in, rows);
+    let mut y = take_rows(&problem.targets(), n_out, rows);
+    let input = Standardizer::fit(&x, n_in);
+    let output = Standardizer::fit(&y, n_out);
+    input.apply_in_place(&mut x);
+    output.apply_in_place(&mut y);
+    let spec = MlpSpec {
+        inputs: n_in,
+        hidden: settings.hidden.clone(),
+        heads: problem
+            .heads
+            .iter()
+            .map(|h| Head {
+                name: h.name.clone(),
+                size: h.len,
+            })
+            .collect(),
+    };
+    let mut fitter = Fitter::new(Mlp::new(spec, seed)?, settings.train.clone())?;
+    progress(Progress::Start {
+        label: label.to_owned(),
+        epochs: settings.epochs,
+        rows: rows.len(),
+    });
+    for epoch in 0..settings.epochs {
+        let loss = fitter.epoch(&x, &y, |n| progress(Progress::Rows(n)))?;
+        if !loss.is_finite() {
+            return Err(TrainError::Diverged {
+                label: label.to_owned(),
+                epoch: epoch + 1,
+            });
+        }
+        progress(Progress::Epoch {
+            epoch: epoch + 1,
+            loss,
+        });
+    }
+    Ok(Regressor {
+        mlp: fitter.into_mlp(),
+        input,
+        output,
+    })
+}
+
+/// Predictions in raw units for rows of `inputs`, with the problem's offset added.
+pub fn predict(
+    model: &Regressor,
+    inputs: &[f32],
+    offset_columns: Option<&[usize]>,
+) -> Result<Vec<f32>, TrainError> {
+    let mut out = Vec::with_capacity(inputs.len());
+    let n_in = model.mlp.spec().inputs;
+    let n_out = model.mlp.spec().outputs();
+    // Batches bound the memory of the activations on paper-size datasets.
+    for chunk in inputs.chunks(65_536 * n_in) {
+        let mut y = model.predict(chunk)?;
+        if let Some(cols) = offset_columns {
+            for (row_out, row_in) in y.chunks_exact_mut(n_out).zip(chunk.chunks_exact(n_in)) {
+                for (v, &c) in row_out.iter_mut().zip(cols) {
+                    *v += row_in[c];
+                }
+            }
+        }
+        out.extend(y);
+    }
+    Ok(out)
+}
+
+/// Mean absolute error of each head (angular heads wrapped into (−π, π]).
+pub fn head_mae(prediction: &[f32], truth: &[f32], heads: &[HeadInfo]) -> Vec<f64> {
+    let width: usize = heads.iter().map(|h| h.len).sum();
+    let rows = truth.len() / width;
+    heads
+        .iter()
+        .map(|h| {
+            let mut sum = 0.0;
+            for r in 0..rows {
+                for c in h.start..h.start + h.len {
+                    let d = prediction[r * width + c] as f64 - truth[r * width + c] as f64;
+                    sum += if h.angular {
+                        wrap_angle(d).abs()
+                    } else {
+                        d.abs()
+                    };
+                }
+            }
+            sum / (rows * h.len).max(1) as f64
+        })
+        .collect()
+}
+
+/// MAE of predicting the training rows' mean of each column (the floor any model must beat).
+pub fn mean_baseline_mae(
+    truth: &[f32],
+    heads: &[HeadInfo],
+    train: &[usize],
+    test: &[usize],
+) -> Vec<f64> {
+    let width: usize = heads.iter().map(|h| h.len).sum();
+    let mut mean = vec![0f64; width];
+    for &r in train {
+        for (c, m) in mean.iter_mut().enumerate() {
+            *m += truth[r * width + c] as f64;
+        }
+    }
+    mean.iter_mut()
+        .for_each(|m| *m /= train.len().max(1) as f64);
+    let prediction: Vec<f32> = test
+        .iter()
+        .flat_map(|_| mean.iter().map(|&m| m as f32))
+        .collect();
+    head_mae(&prediction, &take_rows(truth, width, test), heads)
+}

@@ -1,0 +1,593 @@
+//! The learning half of the paper: forward models (FM) and inverse models (IM) trained
+//! from experiment datasets, judged by k-fold cross-validation next to the paper's figures
+//! and the predict-the-mean baseline, saved as safetensors + JSON model files.
+//!
+//! Node logic lives here without DDS; the `causal_arm_trainer` node serves loaded models
+//! as ROS 2 services, and `causal-arm train` drives [`cross_validate`] from the CLI.
+
+pub mod fit;
+pub mod model_file;
+pub mod problems;
+
+use std::time::Instant;
+
+use causal_arm_dataset::{Dataset, Experiment};
+use causal_arm_mlp::{MlpError, Optimizer, Regressor, TrainConfig};
+use serde::{Deserialize, Serialize};
+
+use fit::{
+    FitSettings, Progress, fit, folds, head_mae, mean_baseline_mae, predict, take_rows,
+    training_rows,
+};
+pub use model_file::{LoadedModel, ModelMeta, load_model, save_model};
+use problems::{FmTarget, HeadInfo, Problem};
+
+/// Why training or evaluation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    /// The network library refused (shapes, file format).
+    #[error(transparent)]
+    Mlp(#[from] MlpError),
+    /// Bad options.
+    #[error("{0}")]
+    Options(String),
+    /// The loss became NaN or infinite.
+    #[error(
+        "{label}: training diverged at epoch {epoch} (loss is not finite); lower the learning rate"
+    )]
+    Diverged {
+        /// Model and fold.
+        label: String,
+        /// Epoch.
+        epoch: usize,
+    },
+    /// A model file could not be read or written.
+    #[error("{path}: {problem}")]
+    File {
+        /// File.
+        path: std::path::PathBuf,
+        /// What failed.
+        problem: String,
+    },
+}
+
+/// The paper's models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelKind {
+    /// Forward model [s(t), a(t)] → s(t+1), one head per state sub-vector.
+    Fm,
+    /// Monolithic inverse model [s(t), s′(t+1)] → a(t).
+    ImMono,
+    /// Pre-computation IM: base IM, pre-network and their assembly (exp 1).
+    ImPre,
+    /// The base IM fed θ(t+1) = 0 or θ(t+1) sampled from the dataset (exp 1).
+    Ablation,
+}
+
+impl ModelKind {
+    /// Every model the paper trains for `experiment`, in the order `all` runs them.
+    pub fn all_for(experiment: Experiment) -> Vec<ModelKind> {
+        match experiment {
+            Experiment::Exp1 => vec![Self::Fm, Self::ImMono, Self::ImPre, Self::Ablation],
+            Experiment::Exp2 => vec![Self::Fm, Self::ImMono],
+        }
+    }
+
+    /// Name on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Fm => "fm",
+            Self::ImMono => "im-mono",
+            Self::ImPre => "im-pre",
+            Self::Ablation => "ablation",
+        }
+    }
+}
+
+impl std::str::FromStr for ModelKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        [Self::Fm, Self::ImMono, Self::ImPre, Self::Ablation]
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| {
+                format!("unknown model {s:?}: expected fm, im-mono, im-pre, ablation or all")
+            })
+    }
+}
+
+/// Epoch budgets: the paper's protocol, or a small one for demos and tests.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Profile {
+    /// FM 60 (exp 1) / 100 (exp 2) epochs, IM 1,000, base IM 100, pre-network 4,000.
+    Paper,
+    /// A few epochs of each, minutes on 2 cores.
+    Quick,
+}
+
+impl std::str::FromStr for Profile {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "paper" => Ok(Self::Paper),
+            "quick" => Ok(Self::Quick),
+            other => Err(format!(
+                "unknown profile {other:?}: expected paper or quick"
+            )),
+        }
+    }
+}
+
+/// One network of a model kind: its label, its epochs in `profile`, and optimizer.
+fn schedule(kind_part: &str, experiment: Experiment, profile: Profile) -> (usize, Optimizer) {
+    let adamw = Optimizer::AdamW {
+        weight_decay: 0.004,
+    };
+    match (kind_part, profile) {
+        ("fm", Profile::Paper) => (
+            if experiment == Experiment::Exp1 {
+                60
+            } else {
+                100
+            },
+            Optimizer::Adam,
+        ),
+        ("fm", Profile::Quick) => (20, Optimizer::Adam),
+        ("im_mono", Profile::Paper) => (1000, adamw),
+        ("im_mono", Profile::Quick) => (30, adamw),
+        ("base", Profile::Paper) => (100, Optimizer::Adam),
+        ("base", Profile::Quick) => (20, Optimizer::Adam),
+        ("pre", Profile::Paper) => (4000, adamw),
+        ("pre", _) => (40, adamw),
+        _ => (20, Optimizer::Adam),
+    }
+}
+
+/// Everything `causal-arm train` decides.
+#[derive(Debug, Clone)]
+pub struct TrainOptions {
+    /// Epoch budget profile.
+    pub profile: Profile,
+    /// Overrides every network's epochs.
+    pub epochs: Option<usize>,
+    /// Cross-validation folds (≥ 2).
+    pub folds: usize,
+    /// FM hidden layers (the paper does not give sizes).
+    pub fm_hidden: Vec<usize>,
+    /// IM, base IM and pre-network hidden layers ("4x" stacked in the paper's figure).
+    pub im_hidden: Vec<usize>,
+    /// Rows per mini-batch.
+    pub batch_size: usize,
+    /// Learning rate (the paper: 1e-3).
+    pub learning_rate: f64,
+    /// How the FM predicts s(t+1).
+    pub fm_target: FmTarget,
+    /// Seed of folds, initial weights and shuffles.
+    pub seed: u64,
+    /// Run only the first `n` folds (each still holds out 1/k of the rows).
+    pub max_folds: Option<usize>,
+}
+
+impl Default for TrainOptions {
+    fn default() -> Self {
+        Self {
+            profile: Profile::Paper,
+            epochs: None,
+            folds: 5,
+            fm_hidden: vec![256; 3],
+            im_hidden: vec![256; 4],
+            batch_size: 256,
+            learning_rate: 1e-3,
+            fm_target: FmTarget::Delta,
+            seed: 0,
+            max_folds: None,
+        }
+    }
+}
+
+impl TrainOptions {
+    fn settings(&self, part: &str, experiment: Experiment, hidden: &[usize]) -> FitSettings {
+        let (epochs, optimizer) = schedule(part, experiment, self.profile);
+        FitSettings {
+            hidden: hidden.to_vec(),
+            train: TrainConfig {
+                optimizer,
+                learning_rate: self.learning_rate,
+                batch_size: self.batch_size,
+                seed: self.seed,
+            },
+            epochs: self.epochs.unwrap_or(epochs),
+        }
+    }
+
+    fn validate(&self) -> Result<(), TrainError> {
+        if self.folds < 2 {
+            return Err(TrainError::Options(format!(
+                "--folds must be at least 2, got {}",
+                self.folds
+            )));
+        }
+        if self.epochs == Some(0) {
+            return Err(TrainError::Options("--epochs must be at least 1".into()));
+        }
+        if self.batch_size == 0 {
+            return Err(TrainError::Options(
+                "--batch-size must be at least 1".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The paper's 5-fold CV MAE for a figure key (`fm/theta`, `im_pre/assembly`, …).
+pub fn paper_figure(experiment: Experiment, key: &str) -> Option<f64> {
+    let table: &[(&str, f64)] = match experiment {
+        Experiment::Exp1 => &[
+            ("fm/ef", 6.9e-3),
+            ("fm/theta", 3.4e-3),
+            ("im_mono/joint", 0.0529),
+            ("im_pre/base", 3.06e-4),
+            ("im_pre/pre", 0.0481),
+            ("im_pre/assembly", 0.0481),
+            ("ablation/zero", 0.322),
+            ("ablation/sampled", 0.371),
+        ],
+        Experiment::Exp2 => &[
+            ("fm/obj_pos", 0.0089),
+            ("fm/obj_rot", 0.0721),
+            ("fm/colour", 0.004),
+            ("fm/ef_pos", 0.008),
+            ("fm/ef_rot", 0.0625),
+            ("fm/theta", 0.0084),
+            ("fm/magnet", 1.3e-4),
+            ("im_mono/joint", 0.0077),
+            ("im_mono/magnet", 4.56e-4),
+        ],
+    };
+    table.iter().find(|(k, _)| *k == key).map(|(_, v)| *v)
+}
+
+/// One figure of one fold.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FoldFigure {
+    /// Model MAE on the fold's held-out rows.
+    pub mae: f64,
+    /// Predict-the-training-mean MAE on the same rows.
+    pub baseline: f64,
+}
+
+/// A figure across folds, next to the paper.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Figure {
+    /// `model/head`, e.g. `fm/theta`.
+    pub key: String,
+    /// Unit of the MAE.
+    pub unit: String,
+    /// Per fold.
+    pub folds: Vec<FoldFigure>,
+    /// Mean MAE over folds.
+    pub mean: f64,
+    /// Standard deviation over folds.
+    pub std: f64,
+    /// Mean baseline MAE over folds.
+    pub baseline: f64,
+    /// The paper's figure, if it reports one.
+    pub paper: Option<f64>,
+}
+
+/// Result of cross-validating one model kind.
+#[derive(Debug)]
+pub struct KindReport {
+    /// Which model.
+    pub kind: ModelKind,
+    /// Figures with per-fold values.
+    pub figures: Vec<Figure>,
+    /// Epochs and wall time of each network trained.
+    pub runs: Vec<RunRecord>,
+    /// Networks from the first fold, to save: (file stem, model, problem metadata).
+    pub models: Vec<(String, Regressor, ProblemInfo, FitSettings)>,
+}
+
+/// Epochs and wall time of one trained network.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RunRecord {
+    /// `fm fold 1/5`, …
+    pub label: String,
+    /// Epochs run.
+    pub epochs: usize,
+    /// Training rows.
+    pub rows: usize,
+    /// Seconds spent training.
+    pub wall_s: f64,
+}
+
+/// What a saved model needs to know about its problem.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ProblemInfo {
+    /// Input feature names.
+    pub input_names: Vec<String>,
+    /// Output names.
+    pub output_names: Vec<String>,
+    /// Heads.
+    pub heads: Vec<HeadInfo>,
+    /// Input columns added to the outputs (delta FM).
+    pub offset_columns: Option<Vec<usize>>,
+}
+
+impl From<&Problem> for ProblemInfo {
+    fn from(p: &Problem) -> Self {
+        Self {
+            input_names: p.input_names.clone(),
+            output_names: p.output_names.clone(),
+            heads: p.heads.clone(),
+            offset_columns: p.offset_columns.clone(),
+        }
+    }
+}
+
+struct FigureAcc {
+    key: String,
+    unit: String,
+    folds: Vec<FoldFigure>,
+}
+
+fn summarise(experiment: Experiment, acc: Vec<FigureAcc>) -> Vec<Figure> {
+    acc.into_iter()
+        .map(|a| {
+            let n = a.folds.len().max(1) as f64;
+            let mean = a.folds.iter().map(|f| f.mae).sum::<f64>() / n;
+            let var = a.folds.iter().map(|f| (f.mae - mean).powi(2)).sum::<f64>() / n;
+            Figure {
+                paper: paper_figure(experiment, &a.key),
+                baseline: a.folds.iter().map(|f| f.baseline).sum::<f64>() / n,
+                key: a.key,
+                unit: a.unit,
+                mean,
+                std: var.sqrt(),
+                folds: a.folds,
+            }
+        })
+        .collect()
+}
+
+fn record(
+    acc: &mut Vec<FigureAcc>,
+    prefix: &str,
+    heads: &[HeadInfo],
+    mae: &[f64],
+    baseline: &[f64],
+) {
+    for ((h, &m), &b) in heads.iter().zip(mae).zip(baseline) {
+        let key = format!("{prefix}/{}", h.name);
+        let entry = match acc.iter_mut().position(|a| a.key == key) {
+            Some(i) => &mut acc[i],
+            None => {
+                acc.push(FigureAcc {
+                    key,
+                    unit: h.unit.clone(),
+                    folds: Vec::new(),
+                });
+                acc.last_mut().expect("pushed")
+            }
+        };
+        entry.folds.push(FoldFigure {
+            mae: m,
+            baseline: b,
+        });
+    }
+}
+
+fn single(acc: &mut Vec<FigureAcc>, key: &str, unit: &str, mae: f64, baseline: f64) {
+    let head = HeadInfo {
+        name: key.rsplit('/').next().unwrap_or(key).to_owned(),
+        start: 0,
+        len: 1,
+        unit: unit.to_owned(),
+        angular: false,
+    };
+    let prefix = key.rsplit_once('/').map(|(p, _)| p).unwrap_or(key);
+    record(acc, prefix, &[head], &[mae], &[baseline]);
+}
+
+/// Cross-validates one model kind on `data`.
+pub fn cross_validate(
+    data: &Dataset,
+    kind: ModelKind,
+    options: &TrainOptions,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<KindReport, TrainError> {
+    options.validate()?;
+    let exp = data.experiment;
+    if matches!(kind, ModelKind::ImPre | ModelKind::Ablation) && exp != Experiment::Exp1 {
+        return Err(TrainError::Options(format!(
+            "{} is defined for exp1 only (the paper's pre-computation study); exp2 has fm and im-mono",
+            kind.name()
+        )));
+    }
+    if data.rows() < options.folds * 2 {
+        return Err(TrainError::Options(format!(
+            "{} transitions are too few for {} folds",
+            data.rows(),
+            options.folds
+        )));
+    }
+    let n = data.rows();
+    let fold_sets = folds(n, options.folds, options.seed);
+    let run_folds = options
+        .max_folds
+        .unwrap_or(options.folds)
+        .clamp(1, options.folds);
+    let mut acc = Vec::new();
+    let mut runs = Vec::new();
+    let mut models = Vec::new();
+    let mut timed_fit = |problem: &Problem,
+                         train: &[usize],
+                         settings: &FitSettings,
+                         label: String,
+                         progress: &mut dyn FnMut(Progress)|
+     -> Result<Regressor, TrainError> {
+        let start = Instant::now();
+        let model = fit(problem, train, settings, options.seed, &label, progress)?;
+        runs.push(RunRecord {
+            label,
+            epochs: settings.epochs,
+            rows: train.len(),
+            wall_s: start.elapsed().as_secs_f64(),
+        });
+        Ok(model)
+    };
+    let k = options.folds;
+    for (f, test) in fold_sets.iter().take(run_folds).enumerate() {
+        let train = training_rows(n, test);
+        let tag = format!("fold {}/{k}", f + 1);
+        let evaluate = |problem: &Problem,
+                        model: &Regressor,
+                        prefix: &str,
+                        acc: &mut Vec<FigureAcc>|
+         -> Result<(), TrainError> {
+            let inputs = take_rows(&problem.inputs, problem.input_names.len(), test);
+            let prediction = predict(model, &inputs, problem.offset_columns.as_deref())?;
+            let truth = take_rows(&problem.truth, problem.output_names.len(), test);
+            let mae = head_mae(&prediction, &truth, &problem.heads);
+            let baseline = mean_baseline_mae(&problem.truth, &problem.heads, &train, test);
+            record(acc, prefix, &problem.heads, &mae, &baseline);
+            Ok(())
+        };
+        match kind {
+            ModelKind::Fm => {
+                let problem = problems::forward_model(data, options.fm_target);
+                let settings = options.settings("fm", exp, &options.fm_hidden);
+                let model = timed_fit(&problem, &train, &settings, format!("fm {tag}"), progress)?;
+                evaluate(&problem, &model, "fm", &mut acc)?;
+                if f == 0 {
+                    models.push((
+                        "fm".to_owned(),
+                        model,
+                        ProblemInfo::from(&problem),
+                        settings,
+                    ));
+                }
+            }
+            ModelKind::ImMono => {
+                let problem = problems::inverse_model(data);
+                let settings = options.settings("im_mono", exp, &options.im_hidden);
+                let model = timed_fit(
+                    &problem,
+                    &train,
+                    &settings,
+                    format!("im-mono {tag}"),
+                    progress,
+                )?;
+                evaluate(&problem, &model, "im_mono", &mut acc)?;
+                if f == 0 {
+                    models.push((
+                        "im-mono".to_owned(),
+                        model,
+                        ProblemInfo::from(&problem),
+                        settings,
+                    ));
+                }
+            }
+            ModelKind::ImPre | ModelKind::Ablation => {
+                let base_problem = problems::base_inverse_model(data);
+                let base_settings = options.settings("base", exp, &options.im_hidden);
+                let base = timed_fit(
+                    &base_problem,
+                    &train,
+                    &base_settings,
+                    format!("base IM {tag}"),
+                    progress,
+                )?;
+                let test_truth = take_rows(&base_problem.truth, 7, test);
+                let baseline =
+                    mean_baseline_mae(&base_problem.truth, &base_problem.heads, &train, test)[0];
+                let pre_problem = problems::pre_network(data);
+                let test_pre_inputs =
+                    take_rows(&pre_problem.inputs, pre_problem.input_names.len(), test);
+                if kind == ModelKind::ImPre {
+                    let base_mae = head_mae(
+                        &predict(
+                            &base,
+                            &take_rows(&base_problem.inputs, base_problem.input_names.len(), test),
+                            None,
+                        )?,
+                        &test_truth,
+                        &base_problem.heads,
+                    )[0];
+                    single(&mut acc, "im_pre/base", "rad", base_mae, baseline);
+                    let pre_settings = options.settings("pre", exp, &options.im_hidden);
+                    let pre = timed_fit(
+                        &pre_problem,
+                        &train,
+                        &pre_settings,
+                        format!("pre-network {tag}"),
+                        progress,
+                    )?;
+                    let theta_hat = predict(&pre, &test_pre_inputs, None)?;
+                    let theta_truth = take_rows(&pre_problem.truth, 7, test);
+                    let pre_mae = head_mae(&theta_hat, &theta_truth, &pre_problem.heads)[0];
+                    let pre_baseline =
+                        mean_baseline_mae(&pre_problem.truth, &pre_problem.heads, &train, test)[0];
+                    single(&mut acc, "im_pre/pre", "rad", pre_mae, pre_baseline);
+                    let assembled = problems::base_inputs_from(exp, &test_pre_inputs, &theta_hat);
+                    let assembly_mae = head_mae(
+                        &predict(&base, &assembled, None)?,
+                        &test_truth,
+                        &base_problem.heads,
+                    )[0];
+                    single(&mut acc, "im_pre/assembly", "rad", assembly_mae, baseline);
+                    if f == 0 {
+                        models.push((
+                            "im-pre-base".to_owned(),
+                            base,
+                            ProblemInfo::from(&base_problem),
+                            base_settings,
+                        ));
+                        models.push((
+                            "im-pre-pre".to_owned(),
+                            pre,
+                            ProblemInfo::from(&pre_problem),
+                            pre_settings,
+                        ));
+                    }
+                } else {
+                    let rows = test.len();
+                    let zeros = vec![0f32; rows * 7];
+                    let zero_inputs = problems::base_inputs_from(exp, &test_pre_inputs, &zeros);
+                    let zero_mae = head_mae(
+                        &predict(&base, &zero_inputs, None)?,
+                        &test_truth,
+                        &base_problem.heads,
+                    )[0];
+                    single(&mut acc, "ablation/zero", "rad", zero_mae, baseline);
+                    // θ_i(t+1) drawn per joint from the training rows.
+                    let mut rng = <rand::rngs::StdRng as rand::SeedableRng>::seed_from_u64(
+                        options.seed ^ 0xab1a,
+                    );
+                    let sampled: Vec<f32> = (0..rows * 7)
+                        .map(|i| {
+                            let r = train[rand::Rng::random_range(&mut rng, 0..train.len())];
+                            pre_problem.truth[r * 7 + i % 7]
+                        })
+                        .collect();
+                    let sampled_inputs =
+                        problems::base_inputs_from(exp, &test_pre_inputs, &sampled);
+                    let sampled_mae = head_mae(
+                        &predict(&base, &sampled_inputs, None)?,
+                        &test_truth,
+                        &base_problem.heads,
+                    )[0];
+                    single(&mut acc, "ablation/sampled", "rad", sampled_mae, baseline);
+                }
+            }
+        }
+    }
+    Ok(KindReport {
+        kind,
+        figures: summarise(exp, acc),
+        runs,
+        models,
+    })
+}

@@ -1,0 +1,135 @@
+//! Cross-validation on real generated bags: figures beat the baseline, files round-trip.
+
+use std::path::PathBuf;
+
+use causal_arm_datagen::{GenerateOptions, RunPlan, generate};
+use causal_arm_dataset::{ActionSource, Experiment, from_bag};
+use causal_arm_trainer::model_file::describe;
+use causal_arm_trainer::{
+    ModelKind, Profile, TrainOptions, cross_validate, load_model, save_model,
+};
+
+fn dataset(experiment: Experiment, episodes: u64, steps: u64) -> causal_arm_dataset::Dataset {
+    let dir = std::env::temp_dir().join(format!(
+        "causal-arm-trainer-{experiment}-{}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    let plan = RunPlan {
+        episodes,
+        steps_per_episode: steps,
+    };
+    generate(
+        &GenerateOptions::new(experiment, plan, 9, dir.join("bag")),
+        &mut |_, _| {},
+    )
+    .unwrap();
+    from_bag(&dir.join("bag"), Some(experiment), ActionSource::Realized).unwrap()
+}
+
+fn quick(epochs: usize) -> TrainOptions {
+    TrainOptions {
+        profile: Profile::Quick,
+        epochs: Some(epochs),
+        folds: 3,
+        fm_hidden: vec![64, 64],
+        im_hidden: vec![64, 64],
+        batch_size: 64,
+        ..TrainOptions::default()
+    }
+}
+
+#[test]
+fn exp1_models_beat_the_mean_baseline_and_files_round_trip() {
+    let data = dataset(Experiment::Exp1, 1, 1500);
+    let fm = cross_validate(&data, ModelKind::Fm, &quick(15), &mut |_| {}).unwrap();
+    let keys: Vec<&str> = fm.figures.iter().map(|f| f.key.as_str()).collect();
+    assert_eq!(keys, ["fm/theta", "fm/ef"]);
+    for f in &fm.figures {
+        assert_eq!(f.folds.len(), 3);
+        assert!(
+            f.mean < 0.5 * f.baseline,
+            "{}: {} vs baseline {}",
+            f.key,
+            f.mean,
+            f.baseline
+        );
+        assert!(f.paper.is_some());
+    }
+    assert_eq!(fm.runs.len(), 3);
+
+    // Save, load, same predictions; the loaded FM adds s(t) back (delta target).
+    let (name, model, problem, settings) = &fm.models[0];
+    let dir: PathBuf =
+        std::env::temp_dir().join(format!("causal-arm-model-{}", std::process::id()));
+    let meta = describe(
+        name,
+        data.experiment,
+        model,
+        problem,
+        settings,
+        "test".into(),
+        &data.sources,
+    );
+    save_model(&dir, model, &meta).unwrap();
+    let loaded = load_model(&dir, "fm").unwrap();
+    assert_eq!(loaded.meta.problem.input_names.len(), 17);
+    let x: Vec<f32> = data
+        .state(5)
+        .iter()
+        .chain(data.action(5))
+        .copied()
+        .collect();
+    let y = loaded.predict(&x).unwrap();
+    for (j, (p, t)) in y.iter().zip(data.next_state(5)).enumerate() {
+        assert!((p - t).abs() < 0.1, "feature {j}: predicted {p}, true {t}");
+    }
+    // A corrupt weights file is a clear error.
+    std::fs::write(dir.join("fm.safetensors"), b"not a model").unwrap();
+    let err = load_model(&dir, "fm").unwrap_err().to_string();
+    assert!(err.contains("fm.safetensors"), "{err}");
+
+    let pre = cross_validate(&data, ModelKind::ImPre, &quick(10), &mut |_| {}).unwrap();
+    let keys: Vec<&str> = pre.figures.iter().map(|f| f.key.as_str()).collect();
+    assert_eq!(keys, ["im_pre/base", "im_pre/pre", "im_pre/assembly"]);
+    let base = &pre.figures[0];
+    assert!(
+        base.mean < 0.3 * base.baseline,
+        "base IM sees θ(t+1): {} vs {}",
+        base.mean,
+        base.baseline
+    );
+    let ablation = cross_validate(&data, ModelKind::Ablation, &quick(10), &mut |_| {}).unwrap();
+    let zero = &ablation.figures[0];
+    assert_eq!(zero.key, "ablation/zero");
+    assert!(
+        zero.mean > base.mean * 3.0,
+        "feeding θ(t+1)=0 must hurt: {} vs {}",
+        zero.mean,
+        base.mean
+    );
+}
+
+#[test]
+fn bad_options_and_exp2_only_models_are_refused() {
+    let data = dataset(Experiment::Exp2, 2, 40);
+    let err = cross_validate(&data, ModelKind::ImPre, &quick(1), &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("exp1 only"), "{err}");
+    let err = cross_validate(
+        &data,
+        ModelKind::Fm,
+        &TrainOptions {
+            folds: 1,
+            ..quick(1)
+        },
+        &mut |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("--folds must be at least 2"), "{err}");
+    let im = cross_validate(&data, ModelKind::ImMono, &quick(2), &mut |_| {}).unwrap();
+    let keys: Vec<&str> = im.figures.iter().map(|f| f.key.as_str()).collect();
+    assert_eq!(keys, ["im_mono/joint", "im_mono/magnet"]);
+}

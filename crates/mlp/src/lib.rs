@@ -12,6 +12,7 @@
 //! [`Regressor`], which stores the statistics with the weights so a saved model predicts
 //! in raw units.
 
+mod kernels;
 mod network;
 mod standardize;
 mod train;

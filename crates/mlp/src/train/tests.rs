@@ -237,3 +237,78 @@ fn bad_shapes_are_refused() {
         [1]
     );
 }
+
+#[test]
+fn thread_counts_agree_and_each_is_reproducible() {
+    let (x, y) = data(500, 8);
+    let fit = |threads: usize| {
+        let mut fitter = Fitter::new(
+            Mlp::new(spec(), 2).unwrap(),
+            TrainConfig {
+                batch_size: 100,
+                seed: 9,
+                ..TrainConfig::default()
+            },
+        )
+        .unwrap()
+        .with_threads(threads);
+        assert_eq!(fitter.threads(), threads);
+        let mut seen = 0;
+        for _ in 0..3 {
+            fitter.epoch(&x, &y, |n| seen += n).unwrap();
+        }
+        assert_eq!(seen, 1500);
+        let flat = |m: &Mlp| -> Vec<f32> {
+            m.layers()
+                .iter()
+                .flat_map(|l| {
+                    let mut v: Vec<f32> = l.weight.flatten_all().unwrap().to_vec1().unwrap();
+                    v.extend(l.bias.to_vec1::<f32>().unwrap());
+                    v
+                })
+                .collect()
+        };
+        let via_ref = flat(fitter.mlp());
+        let owned = flat(&fitter.into_mlp());
+        assert_eq!(via_ref, owned);
+        owned
+    };
+    let one = fit(1);
+    let two = fit(2);
+    let three = fit(3);
+    assert_eq!(two, fit(2), "same seed and thread count, same bits");
+    for other in [&two, &three] {
+        let diff = one
+            .iter()
+            .zip(other.iter())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(diff < 1e-3, "thread counts differ by {diff}");
+    }
+}
+
+#[test]
+fn loss_matches_the_candle_forward_pass() {
+    let mlp = Mlp::new(spec(), 5).unwrap();
+    let fitter = Fitter::new(mlp.clone(), TrainConfig::default()).unwrap();
+    let (x, y) = data(1300, 3);
+    let xt = Tensor::from_vec(x.clone(), (1300, 5), &Device::Cpu).unwrap();
+    let yt = Tensor::from_vec(y.clone(), (1300, 4), &Device::Cpu).unwrap();
+    let reference = ((mlp.forward(&xt).unwrap() - yt).unwrap())
+        .sqr()
+        .unwrap()
+        .broadcast_mul(&fitter.column_weight)
+        .unwrap()
+        .sum_all()
+        .unwrap()
+        .to_scalar::<f32>()
+        .unwrap() as f64
+        / 1300.0;
+    let ours = fitter.loss(&x, &y).unwrap();
+    assert!(
+        (ours - reference).abs() < 1e-5 * reference,
+        "{ours} vs {reference}"
+    );
+    let bad = Tensor::zeros((3, 4), DType::F32, &Device::Cpu).unwrap();
+    assert!(fitter.loss_and_gradients(&bad, &bad).is_err());
+}

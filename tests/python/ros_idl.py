@@ -68,3 +68,129 @@ class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
 class PoseStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseStamped_"):
     header: Header = field(default_factory=Header)
     pose: Pose = field(default_factory=Pose)
+
+
+# --- causal_arm_msgs services as rmw_cyclonedds puts them on the wire ---------------------
+# Request topic `rq/<service>Request`, reply topic `rr/<service>Reply`; each sample starts
+# in-band with the request header (u64 client guid, i64 sequence number), then the fields.
+
+
+@dataclass
+class PredictNextStateRequest(IdlStruct, typename="causal_arm_msgs::srv::dds_::PredictNextState_Request_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    state: t.sequence[t.float64] = field(default_factory=list)
+    action: t.sequence[t.float64] = field(default_factory=list)
+    rows: t.uint32 = 0
+
+
+@dataclass
+class PredictNextStateReply(IdlStruct, typename="causal_arm_msgs::srv::dds_::PredictNextState_Response_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    success: bool = False
+    message: str = ""
+    next_state: t.sequence[t.float64] = field(default_factory=list)
+    state_names: t.sequence[str] = field(default_factory=list)
+    rows: t.uint32 = 0
+
+
+@dataclass
+class PredictActionRequest(IdlStruct, typename="causal_arm_msgs::srv::dds_::PredictAction_Request_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    state: t.sequence[t.float64] = field(default_factory=list)
+    next_state: t.sequence[t.float64] = field(default_factory=list)
+    rows: t.uint32 = 0
+
+
+@dataclass
+class PredictActionReply(IdlStruct, typename="causal_arm_msgs::srv::dds_::PredictAction_Response_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    success: bool = False
+    message: str = ""
+    action: t.sequence[t.float64] = field(default_factory=list)
+    action_names: t.sequence[str] = field(default_factory=list)
+    rows: t.uint32 = 0
+
+
+@dataclass
+class RolloutRequest(IdlStruct, typename="causal_arm_msgs::srv::dds_::Rollout_Request_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    initial_state: t.sequence[t.float64] = field(default_factory=list)
+    actions: t.sequence[t.float64] = field(default_factory=list)
+    steps: t.uint32 = 0
+
+
+@dataclass
+class RolloutReply(IdlStruct, typename="causal_arm_msgs::srv::dds_::Rollout_Response_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    success: bool = False
+    message: str = ""
+    states: t.sequence[t.float64] = field(default_factory=list)
+    state_names: t.sequence[str] = field(default_factory=list)
+    steps: t.uint32 = 0
+
+
+@dataclass
+class GetModelInfoRequest(IdlStruct, typename="causal_arm_msgs::srv::dds_::GetModelInfo_Request_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    model: str = ""
+
+
+@dataclass
+class GetModelInfoReply(IdlStruct, typename="causal_arm_msgs::srv::dds_::GetModelInfo_Response_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    success: bool = False
+    message: str = ""
+    models: t.sequence[str] = field(default_factory=list)
+    state_names: t.sequence[str] = field(default_factory=list)
+    action_names: t.sequence[str] = field(default_factory=list)
+    metrics_json: str = ""
+
+
+class ServiceClient:
+    """A ROS 2 service client as rmw_cyclonedds makes one, on a CycloneDDS participant."""
+
+    def __init__(self, participant, service: str, request_type, reply_type):
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+        from cyclonedds.topic import Topic
+
+        name = service.lstrip("/")
+        qos = ros_default_qos(depth=100)
+        self.writer = DataWriter(participant, Topic(participant, f"rq/{name}Request", request_type), qos=qos)
+        self.reader = DataReader(participant, Topic(participant, f"rr/{name}Reply", reply_type), qos=qos)
+        self.guid = int.from_bytes(self.writer.guid.bytes[:8], "little")
+        self.sequence = 0
+
+    def wait_for_server(self, timeout: float = 20.0) -> bool:
+        import time
+
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.writer.get_matched_subscriptions() and self.reader.get_matched_publications():
+                time.sleep(0.5)  # let the server's reader match us too, as with topics
+                return True
+            time.sleep(0.05)
+        return False
+
+    def call(self, request, timeout: float = 10.0):
+        import time
+
+        self.sequence += 1
+        request.client_guid = self.guid
+        request.sequence_number = self.sequence
+        self.writer.write(request)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for reply in self.reader.take(N=16):
+                if reply.client_guid == self.guid and reply.sequence_number == self.sequence:
+                    return reply
+            time.sleep(0.0002)
+        raise TimeoutError(f"no reply within {timeout} s")

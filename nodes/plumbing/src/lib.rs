@@ -11,6 +11,7 @@ pub mod logging;
 pub mod node;
 pub mod params;
 pub mod qos;
+pub mod run;
 
 pub use env::{DiscoveryRange, EnvError, RosEnv};
 pub use node::{NodeError, RosNode};

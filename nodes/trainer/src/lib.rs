@@ -8,6 +8,7 @@
 pub mod fit;
 pub mod model_file;
 pub mod problems;
+pub mod serve;
 
 use std::time::Instant;
 

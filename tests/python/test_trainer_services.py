@@ -1,0 +1,183 @@
+"""The trainer node's services called by an independent ROS 2 peer (CycloneDDS Python
+speaking as rmw_cyclonedds does), checked against a numpy forward pass of the model files,
+and a corpus of bad requests that must get error replies while the node keeps serving."""
+
+import json
+import math
+import os
+import pathlib
+import signal
+import struct
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+import ros_idl as idl
+
+
+def load_safetensors(path: pathlib.Path) -> dict:
+    """Reads a safetensors file with numpy only (format: u64 header size, JSON header, data)."""
+    raw = path.read_bytes()
+    (size,) = struct.unpack("<Q", raw[:8])
+    header = json.loads(raw[8:8 + size])
+    data = raw[8 + size:]
+    out = {}
+    for name, info in header.items():
+        if name == "__metadata__":
+            continue
+        assert info["dtype"] == "F32", name
+        start, end = info["data_offsets"]
+        out[name] = np.frombuffer(data[start:end], dtype="<f4").reshape(info["shape"]).astype(np.float64)
+    return out
+
+
+def numpy_predict(model_dir: pathlib.Path, name: str, inputs: np.ndarray) -> np.ndarray:
+    """The model's prediction from its files alone: standardise, tanh layers, linear, un-standardise."""
+    meta = json.loads((model_dir / f"{name}.json").read_text())
+    t = load_safetensors(model_dir / f"{name}.safetensors")
+    h = (inputs - t["input.mean"]) / t["input.std"]
+    layers = len(meta["architecture"]["hidden"]) + 1
+    for i in range(layers):
+        h = h @ t[f"layers.{i}.weight"].T + t[f"layers.{i}.bias"]
+        if i < layers - 1:
+            h = np.tanh(h)
+    y = h * t["output.std"] + t["output.mean"]
+    offset = meta["problem"]["offset_columns"]
+    if offset is not None:
+        y = y + inputs[:, offset]
+    return y
+
+
+@pytest.fixture(scope="module")
+def model_dir(run_cli, tmp_path_factory):
+    d = tmp_path_factory.mktemp("trainer")
+    r = run_cli("generate", "exp1", "--profile", "quick", "--steps", "1200", "--seed", "5", "--out", d / "bag")
+    assert r.returncode == 0, r.stderr
+    for model, hidden in [("fm", "--fm-hidden"), ("im-mono", "--im-hidden")]:
+        r = run_cli("train", "--bag", d / "bag", "--model", model, "--epochs", "3", "--folds", "2",
+                    hidden, "32,32", "--out", d / "models", "--cache", d / "cache", timeout=300)
+        assert r.returncode == 0, r.stderr
+    return d / "models"
+
+
+@pytest.fixture(scope="module")
+def trainer_node(model_dir, causal_arm_bin, private_netns_module):
+    binary = causal_arm_bin.parent / "causal_arm_trainer"
+    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp", ROS_DOMAIN_ID="41")
+    proc = subprocess.Popen([str(binary), "--ros-args", "-p", f"model_dir:={model_dir}"], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    yield proc
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+@pytest.fixture(scope="module")
+def private_netns_module():
+    from conftest import in_private_netns, network_interfaces
+
+    if not in_private_netns():
+        pytest.fail("DDS tests must run inside tests/netns-run (found interfaces: " + ", ".join(network_interfaces()) + ")")
+
+
+@pytest.fixture(scope="module")
+def clients(trainer_node):
+    from cyclonedds.domain import DomainParticipant
+
+    participant = DomainParticipant(41)
+    made = {
+        "next": idl.ServiceClient(participant, "/trainer/predict_next_state", idl.PredictNextStateRequest, idl.PredictNextStateReply),
+        "action": idl.ServiceClient(participant, "/trainer/predict_action", idl.PredictActionRequest, idl.PredictActionReply),
+        "rollout": idl.ServiceClient(participant, "/trainer/rollout", idl.RolloutRequest, idl.RolloutReply),
+        "info": idl.ServiceClient(participant, "/trainer/model_info", idl.GetModelInfoRequest, idl.GetModelInfoReply),
+    }
+    for name, client in made.items():
+        assert client.wait_for_server(), f"{name}: no server matched (node stderr: {trainer_node.stderr.read() if trainer_node.poll() is not None else 'running'})"
+    return made
+
+
+def test_services_agree_with_numpy_on_the_model_files(clients, model_dir):
+    rng = np.random.default_rng(0)
+    state = np.concatenate([rng.normal(0, 0.3, (5, 7)), rng.uniform(0.2, 0.6, (5, 3))], axis=1)
+    action = rng.normal(0, 0.05, (5, 7))
+    reply = clients["next"].call(idl.PredictNextStateRequest(state=state.ravel().tolist(), action=action.ravel().tolist(), rows=5))
+    assert reply.success, reply.message
+    assert reply.rows == 5
+    assert reply.state_names[:2] == ["theta0", "theta1"] and reply.state_names[7] == "ef_x"
+    expected = numpy_predict(model_dir, "fm", np.concatenate([state, action], axis=1))
+    np.testing.assert_allclose(np.array(reply.next_state).reshape(5, 10), expected, rtol=1e-4, atol=1e-5)
+
+    # Inverse model: [s(t), s'(t+1) without θ] → a(t).
+    ef_next = rng.uniform(0.2, 0.6, (5, 3))
+    reply = clients["action"].call(idl.PredictActionRequest(state=state.ravel().tolist(), next_state=ef_next.ravel().tolist(), rows=5))
+    assert reply.success, reply.message
+    assert reply.action_names == [f"a{i}" for i in range(7)]
+    expected = numpy_predict(model_dir, "im-mono", np.concatenate([state, ef_next], axis=1))
+    np.testing.assert_allclose(np.array(reply.action).reshape(5, 7), expected, rtol=1e-4, atol=1e-5)
+
+    # Rollout chains the FM: each state is the FM of the previous one.
+    actions = rng.normal(0, 0.05, (4, 7))
+    reply = clients["rollout"].call(idl.RolloutRequest(initial_state=state[0].tolist(), actions=actions.ravel().tolist(), steps=4))
+    assert reply.success, reply.message
+    s = state[0]
+    states = np.array(reply.states).reshape(4, 10)
+    for k in range(4):
+        s = numpy_predict(model_dir, "fm", np.concatenate([s, actions[k]])[None, :])[0]
+        np.testing.assert_allclose(states[k], s, rtol=1e-4, atol=1e-5)
+
+    info = clients["info"].call(idl.GetModelInfoRequest(model=""))
+    assert info.success and info.models == ["fm", "im-mono"]
+    metrics = json.loads(info.metrics_json)
+    assert set(metrics) == {"fm", "im-mono"}
+    fm_info = clients["info"].call(idl.GetModelInfoRequest(model="fm"))
+    figures = {f["key"]: f for f in json.loads(fm_info.metrics_json)["figures"]}
+    assert figures["fm/ef"]["paper"] == pytest.approx(6.9e-3) and "baseline" in figures["fm/ef"]
+
+
+BAD_REQUESTS = [
+    ("next", idl.PredictNextStateRequest(state=[0.0] * 10, action=[0.0] * 7, rows=0), "rows must be at least 1"),
+    ("next", idl.PredictNextStateRequest(state=[0.0] * 9, action=[0.0] * 7, rows=1), "state has 9 values, expected rows × 10 = 10"),
+    ("next", idl.PredictNextStateRequest(state=[0.0] * 10, action=[0.0] * 8, rows=1), "action has 8 values"),
+    ("next", idl.PredictNextStateRequest(state=[], action=[], rows=1), "state has 0 values"),
+    ("next", idl.PredictNextStateRequest(state=[0.0] * 9 + [math.nan], action=[0.0] * 7, rows=1), "state[9] (row 0, column 9) is NaN"),
+    ("next", idl.PredictNextStateRequest(state=[0.0] * 10, action=[math.inf] + [0.0] * 6, rows=1), "action[0] (row 0, column 0) is inf"),
+    ("next", idl.PredictNextStateRequest(state=[], action=[], rows=4_000_000_000), "exceeds the limit"),
+    ("action", idl.PredictActionRequest(state=[0.0] * 10, next_state=[0.0] * 10, rows=1), "next_state has 10 values, expected rows × 3 = 3"),
+    ("rollout", idl.RolloutRequest(initial_state=[0.0] * 10, actions=[0.0] * 7, steps=2), "actions has 7 values"),
+    ("rollout", idl.RolloutRequest(initial_state=[0.0] * 10, actions=[], steps=0), "steps must be at least 1"),
+    ("rollout", idl.RolloutRequest(initial_state=[0.0] * 3, actions=[0.0] * 7, steps=1), "initial_state has 3 values"),
+    ("info", idl.GetModelInfoRequest(model="nope"), 'unknown model "nope"'),
+]
+
+
+@pytest.mark.parametrize("service,request_,message", BAD_REQUESTS, ids=[m for _, _, m in BAD_REQUESTS])
+def test_bad_requests_get_error_replies_and_the_node_keeps_serving(clients, trainer_node, service, request_, message):
+    reply = clients[service].call(request_)
+    assert not reply.success
+    assert message in reply.message, reply.message
+    assert trainer_node.poll() is None, "node must keep running"
+    ok = clients["info"].call(idl.GetModelInfoRequest(model="fm"))
+    assert ok.success
+
+
+def test_node_refuses_missing_and_corrupt_model_dirs(causal_arm_bin, model_dir, tmp_path, private_netns):
+    binary = causal_arm_bin.parent / "causal_arm_trainer"
+    r = subprocess.run([str(binary)], capture_output=True, text=True, timeout=30)
+    assert r.returncode != 0 and "model_dir is required" in r.stderr
+    r = subprocess.run([str(binary), "--ros-args", "-p", f"model_dir:={tmp_path / 'none'}"], capture_output=True, text=True, timeout=30)
+    assert r.returncode != 0 and "cannot list the model directory" in r.stderr
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for f in model_dir.iterdir():
+        (bad / f.name).write_bytes(f.read_bytes())
+    (bad / "fm.safetensors").write_bytes(b"\x10\x00\x00\x00\x00\x00\x00\x00{not json}......")
+    r = subprocess.run([str(binary), "--ros-args", "-p", f"model_dir:={bad}"], capture_output=True, text=True, timeout=30)
+    assert r.returncode != 0 and "fm.safetensors" in r.stderr, r.stderr
+    r = subprocess.run([str(binary), "--ros-args", "-p", f"model_dir:={model_dir}", "-p", "forward_model:=im-pre"],
+                       capture_output=True, text=True, timeout=30)
+    assert r.returncode != 0 and 'no forward model "im-pre"' in r.stderr, r.stderr

@@ -2,7 +2,7 @@
 
 The node binaries (causal_arm_sim, causal_arm_babbler, causal_arm_recorder) are looked up
 on PATH or in CAUSAL_ARM_BIN_DIR (default: <repo>/target/release). Launch arguments mirror
-`causal-arm launch`: profile, steps, episodes, seed, sigma, out, overwrite.
+`causal-arm launch`: profile, steps, episodes, seed, sigma, velocity_scale, out, overwrite.
 """
 
 import os
@@ -31,6 +31,7 @@ def graph(experiment: str, default_out: str) -> LaunchDescription:
         "episodes": "0",
         "seed": "0",
         "sigma": "0.35",
+        "velocity_scale": "1.0",
         "out": default_out,
         "overwrite": "false",
     }
@@ -38,7 +39,7 @@ def graph(experiment: str, default_out: str) -> LaunchDescription:
 
     def params(*extra):
         items = ["experiment:=" + experiment]
-        for key in ("profile", "steps", "episodes", "seed", "sigma"):
+        for key in ("profile", "steps", "episodes", "seed", "sigma", "velocity_scale"):
             items.append([key, ":=", LaunchConfiguration(key)])
         items.extend(extra)
         out = ["--ros-args"]

@@ -35,6 +35,10 @@ pub struct GenerateArgs {
     /// Standard deviation of the exp1 joint targets, rad.
     #[arg(long, default_value_t = 0.35)]
     sigma: f64,
+    /// Scale of the URDF joint velocity limits (1 = the real iiwa; the paper's arm moved
+    /// faster, see docs/RESULTS.md).
+    #[arg(long, default_value_t = 1.0)]
+    velocity_scale: f64,
 }
 
 impl GenerateArgs {
@@ -64,6 +68,13 @@ impl GenerateArgs {
         let mut options = GenerateOptions::new(experiment, plan, self.seed, &self.out);
         options.overwrite = self.overwrite;
         options.exp1.sigma = self.sigma;
+        if !(self.velocity_scale.is_finite() && self.velocity_scale > 0.0) {
+            anyhow::bail!(
+                "--velocity-scale must be a positive number, got {}",
+                self.velocity_scale
+            );
+        }
+        options.sim.velocity_scale = self.velocity_scale;
         Ok(options)
     }
 }

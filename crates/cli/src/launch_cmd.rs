@@ -68,6 +68,7 @@ pub fn run(args: &GenerateArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
         format!("experiment:={}", options.experiment),
         format!("seed:={}", options.seed),
         format!("sigma:={}", options.exp1.sigma),
+        format!("velocity_scale:={}", options.sim.velocity_scale),
         format!("steps:={}", plan.steps_per_episode),
         format!("episodes:={}", plan.episodes),
     ];

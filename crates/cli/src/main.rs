@@ -5,6 +5,7 @@ mod generate_cmd;
 mod kinematics_cmd;
 mod launch_cmd;
 mod play_cmd;
+mod rollout_cmd;
 mod topic_cmd;
 mod train_cmd;
 
@@ -41,6 +42,8 @@ enum Command {
     Topic(topic_cmd::TopicArgs),
     /// Cross-validate forward/inverse models on bags and write model files and metrics.
     Train(train_cmd::TrainArgs),
+    /// Mental simulation: chain a trained forward model over fresh trajectories.
+    Rollout(rollout_cmd::RolloutArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -62,6 +65,7 @@ fn main() -> std::process::ExitCode {
         Command::Play(args) => play_cmd::run(args, &ros_args),
         Command::Topic(args) => topic_cmd::run(args, &ros_args),
         Command::Train(args) => train_cmd::run(args),
+        Command::Rollout(args) => rollout_cmd::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -143,6 +143,8 @@ pub mod bag_keys {
     pub const STEPS_PER_EPISODE: &str = "causal_arm.steps_per_episode";
     /// Exp 1 babbling spread, rad.
     pub const SIGMA: &str = "causal_arm.sigma";
+    /// Scale of the URDF joint velocity limits.
+    pub const VELOCITY_SCALE: &str = "causal_arm.velocity_scale";
 }
 
 impl GenerateOptions {
@@ -152,6 +154,10 @@ impl GenerateOptions {
         let mut data = std::collections::BTreeMap::from([
             (bag_keys::EXPERIMENT.to_owned(), self.experiment.to_string()),
             (bag_keys::SEED.to_owned(), self.seed.to_string()),
+            (
+                bag_keys::VELOCITY_SCALE.to_owned(),
+                self.sim.velocity_scale.to_string(),
+            ),
             (
                 bag_keys::EPISODES.to_owned(),
                 self.plan.episodes.to_string(),

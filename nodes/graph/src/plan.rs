@@ -41,6 +41,12 @@ pub fn run_param_specs() -> Vec<ParamSpec> {
             "exp1 joint target spread, rad",
         )
         .with_range(0.0, 10.0),
+        ParamSpec::new(
+            "velocity_scale",
+            ParamValue::Double(1.0),
+            "scale of the URDF joint velocity limits in the simulator",
+        )
+        .with_range(0.01, 1000.0),
     ]
 }
 
@@ -74,6 +80,7 @@ impl RunParams {
         let mut options =
             GenerateOptions::new(experiment, plan, params.integer("seed") as u64, out);
         options.exp1.sigma = params.double("sigma");
+        options.sim.velocity_scale = params.double("velocity_scale");
         Ok(Self { options })
     }
 

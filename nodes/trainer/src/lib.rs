@@ -6,6 +6,7 @@
 //! as ROS 2 services, and `causal-arm train` drives [`cross_validate`] from the CLI.
 
 pub mod fit;
+pub mod mental;
 pub mod model_file;
 pub mod problems;
 pub mod serve;

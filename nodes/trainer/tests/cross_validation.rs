@@ -84,6 +84,22 @@ fn exp1_models_beat_the_mean_baseline_and_files_round_trip() {
     for (j, (p, t)) in y.iter().zip(data.next_state(5)).enumerate() {
         assert!((p - t).abs() < 0.1, "feature {j}: predicted {p}, true {t}");
     }
+    // Mental simulation: errors grow with the chained steps; too few windows is an error.
+    let fresh = dataset(Experiment::Exp1, 1, 400);
+    let sim = causal_arm_trainer::mental::mental_simulation(&loaded, &fresh, 30, 10).unwrap();
+    assert_eq!((sim.trajectories, sim.steps, sim.curves.len()), (30, 10, 2));
+    let theta = &sim.curves[0];
+    assert_eq!(theta.group, "theta");
+    assert!(
+        theta.mean[9] > theta.mean[0],
+        "chained errors accumulate: {:?}",
+        theta.mean
+    );
+    let err = causal_arm_trainer::mental::mental_simulation(&loaded, &fresh, 100, 10)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("only 39 windows"), "{err}");
+
     // A corrupt weights file is a clear error.
     std::fs::write(dir.join("fm.safetensors"), b"not a model").unwrap();
     let err = load_model(&dir, "fm").unwrap_err().to_string();

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The README's main job, end to end on the embedded default (urdf/iiwa14_magnet.urdf).
 # It grows with the project; today it builds the release binaries, shows the arm's
-# kinematics, then runs both experiments' data-generation graphs (simulator, babbler and
+# kinematics, runs both experiments' data-generation graphs (simulator, babbler and
 # recorder as three ROS 2 node processes over DDS, inside a private loopback-only network
-# namespace) on the quick profile and writes the bags under bags/.
+# namespace) on the quick profile, cross-validates the paper's models on those bags,
+# runs the exp1 mental simulation, and asks the trainer node for a prediction over DDS.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --locked --workspace --bins
@@ -19,4 +20,23 @@ tests/netns-run env ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-7}" RUST_LOG="${RUST_LOG:-er
   $BIN launch exp1 --profile quick --seed 1 --out bags/quick_exp1 --overwrite
 tests/netns-run env ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-7}" RUST_LOG="${RUST_LOG:-error}" \
   $BIN launch exp2 --profile quick --seed 1 --out bags/quick_exp2 --overwrite
-echo "==> done: bags/quick_exp1 and bags/quick_exp2 (rosbag2 MCAP; open with ros2 bag info, rosbags or mcap)"
+
+echo "==> forward and inverse models, 5-fold cross-validation (quick profile epochs)"
+$BIN train --bag bags/quick_exp1 --model all --profile quick --out models/quick_exp1
+$BIN train --bag bags/quick_exp2 --model all --profile quick --out models/quick_exp2
+
+echo "==> mental simulation: the exp1 FM chained 10 steps on 6,000 fresh trajectories"
+$BIN generate exp1 --steps 60010 --seed 99 --out bags/fresh_exp1 --overwrite
+$BIN rollout --model models/quick_exp1 --bag bags/fresh_exp1
+
+echo "==> the trainer node answering /trainer/predict_next_state over DDS"
+tests/netns-run bash -c '
+  export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-7}" RUST_LOG="${RUST_LOG:-warn}"
+  target/release/causal_arm_trainer --ros-args -p model_dir:=models/quick_exp1 & node=$!
+  target/release/causal-arm service call /trainer/predict_next_state \
+    --type causal_arm_msgs/srv/PredictNextState --timeout 20 \
+    --json "{\"state\":[0,0.5,0,-1.2,0,0.8,0,0.55,0,0.45],\"action\":[0.05,0,0,0,0,0,0],\"rows\":1}"
+  status=$?; kill -INT $node; wait $node; exit $status'
+
+echo "==> done: bags under bags/ (rosbag2 MCAP), models and metrics.json under models/,"
+echo "    mental simulation figure models/quick_exp1/mental_simulation.png"

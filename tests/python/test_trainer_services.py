@@ -181,3 +181,22 @@ def test_node_refuses_missing_and_corrupt_model_dirs(causal_arm_bin, model_dir, 
     r = subprocess.run([str(binary), "--ros-args", "-p", f"model_dir:={model_dir}", "-p", "forward_model:=im-pre"],
                        capture_output=True, text=True, timeout=30)
     assert r.returncode != 0 and 'no forward model "im-pre"' in r.stderr, r.stderr
+
+
+def test_cli_service_call_gets_the_same_reply(run_cli, trainer_node, model_dir, clients):
+    state = [0.1, 0.5, 0.0, -1.2, 0.0, 0.8, 0.0, 0.55, 0.0, 0.45]
+    action = [0.05, 0.0, -0.02, 0.0, 0.0, 0.01, 0.0]
+    request = json.dumps({"state": state, "action": action, "rows": 1})
+    env = {"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp", "ROS_DOMAIN_ID": "41"}
+    r = run_cli("service", "call", "/trainer/predict_next_state", "--type", "causal_arm_msgs/srv/PredictNextState",
+                "--json", request, "--timeout", "20", env=env)
+    assert r.returncode == 0, r.stderr
+    reply = json.loads(r.stdout)
+    assert reply["success"] and reply["rows"] == 1
+    expected = numpy_predict(model_dir, "fm", np.array([state + action]))[0]
+    np.testing.assert_allclose(reply["next_state"], expected, rtol=1e-4, atol=1e-5)
+    r = run_cli("service", "call", "/trainer/predict_next_state", "--type", "causal_arm_msgs/srv/Nope", env=env)
+    assert r.returncode != 0 and "unknown service type" in r.stderr
+    r = run_cli("service", "call", "/trainer/predict_next_state", "--type", "causal_arm_msgs/srv/PredictNextState",
+                "--json", '{"rows": "x"}', env=env)
+    assert r.returncode != 0 and "does not match the request" in r.stderr

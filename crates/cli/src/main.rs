@@ -6,6 +6,7 @@ mod kinematics_cmd;
 mod launch_cmd;
 mod play_cmd;
 mod rollout_cmd;
+mod service_cmd;
 mod topic_cmd;
 mod train_cmd;
 
@@ -44,6 +45,8 @@ enum Command {
     Train(train_cmd::TrainArgs),
     /// Mental simulation: chain a trained forward model over fresh trajectories.
     Rollout(rollout_cmd::RolloutArgs),
+    /// Call a service with a JSON request (like `ros2 service call`).
+    Service(service_cmd::ServiceArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -66,6 +69,7 @@ fn main() -> std::process::ExitCode {
         Command::Topic(args) => topic_cmd::run(args, &ros_args),
         Command::Train(args) => train_cmd::run(args),
         Command::Rollout(args) => rollout_cmd::run(args),
+        Command::Service(args) => service_cmd::run(args, &ros_args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

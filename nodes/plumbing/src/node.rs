@@ -2,6 +2,7 @@
 //! environment and `--ros-args`.
 
 use std::thread::JoinHandle;
+use std::time::Duration;
 
 use causal_arm_msgs::{RosMessage, RosService};
 use ros2_client::{
@@ -141,6 +142,34 @@ impl RosNode {
 
     fn node_ref(&self) -> &Node {
         self.node.as_ref().expect("node lives until drop")
+    }
+
+    /// Waits until a server of `client`'s service has matched (or `timeout` passed);
+    /// returns whether it did. Then waits `settle` more, as a matched reader may still
+    /// drop the first request (see `wait_for_subscribers`).
+    pub fn wait_for_service<
+        Req: ros2_client::Message + 'static,
+        Resp: ros2_client::Message + 'static,
+    >(
+        &self,
+        client: &Client<Req, Resp>,
+        timeout: Duration,
+        settle: Duration,
+    ) -> bool {
+        let matched = smol::block_on(smol::future::or(
+            async {
+                client.wait_for_service(self.node_ref()).await;
+                true
+            },
+            async {
+                smol::Timer::after(timeout).await;
+                false
+            },
+        ));
+        if matched {
+            std::thread::sleep(settle);
+        }
+        matched
     }
 
     /// The validated parameters.

@@ -1,0 +1,1 @@
+//! Deep SHAP and Kernel SHAP (being written).

@@ -1,0 +1,88 @@
+"""`causal-arm train` and `rollout` from the command line: outputs, and clear errors with
+exit code 1 for bad input (unknown model, other experiment's bag, corrupt files, …)."""
+
+import json
+
+import pytest
+
+
+@pytest.fixture(scope="module")
+def bags(run_cli, tmp_path_factory):
+    d = tmp_path_factory.mktemp("train_cli")
+    r = run_cli("generate", "exp1", "--steps", "1500", "--seed", "4", "--out", d / "exp1")
+    assert r.returncode == 0, r.stderr
+    r = run_cli("generate", "exp2", "--episodes", "2", "--seed", "4", "--out", d / "exp2")
+    assert r.returncode == 0, r.stderr
+    return d
+
+
+def train(run_cli, bags, *args):
+    defaults = {"--epochs": "2", "--folds": "2", "--fm-hidden": "16", "--im-hidden": "16"}
+    extra = [x for k, v in defaults.items() if k not in args for x in (k, v)]
+    return run_cli("train", "--cache", bags / "cache", *extra, *args, timeout=300)
+
+
+def test_train_writes_models_and_metrics_beside_the_paper(run_cli, bags):
+    out = bags / "models1"
+    r = train(run_cli, bags, "--bag", bags / "exp1", "--model", "fm", "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert "fm/theta" in r.stdout and "fm/ef" in r.stdout and "3.400e-3 rad" in r.stdout
+    metrics = json.loads((out / "metrics.json").read_text())
+    fm = metrics["models"]["fm"]
+    keys = [f["key"] for f in fm["figures"]]
+    assert keys == ["fm/theta", "fm/ef"]
+    for f in fm["figures"]:
+        assert len(f["folds"]) == 2 and f["baseline"] > 0 and f["paper"] > 0
+    assert fm["runs"][0]["epochs"] == 2 and fm["runs"][0]["wall_s"] > 0
+    meta = json.loads((out / "fm.json").read_text())
+    assert meta["problem"]["input_names"][:2] == ["theta0", "theta1"] and meta["problem"]["input_names"][-1] == "a6"
+    assert meta["sources"][0]["blake3"] and meta["training"]["train"]["optimizer"]["kind"] == "adam"
+    assert (out / "fm.safetensors").stat().st_size > 1000
+    # A second model accumulates in metrics.json.
+    r = train(run_cli, bags, "--bag", bags / "exp1", "--model", "im-mono", "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert set(json.loads((out / "metrics.json").read_text())["models"]) == {"fm", "im-mono"}
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--model", "nope"], "unknown model \"nope\""),
+    (["--profile", "huge"], "unknown profile"),
+    (["--folds", "1"], "--folds must be at least 2"),
+    (["--epochs", "0"], "--epochs must be at least 1"),
+    (["--experiment", "exp2"], "holds exp1 data"),
+    (["--model", "im-pre", "--bag-exp2"], "exp1 only"),
+    (["--fm-hidden", "0"], "hidden layer widths must be positive"),
+    (["--action", "wished"], "unknown action source"),
+])
+def test_bad_train_input_is_refused(run_cli, bags, args, message):
+    bag = bags / "exp1"
+    if "--bag-exp2" in args:
+        args = [a for a in args if a != "--bag-exp2"]
+        bag = bags / "exp2"
+    r = train(run_cli, bags, "--bag", bag, "--out", bags / "bad", *args)
+    assert r.returncode == 1, r.stdout
+    assert message in r.stderr, r.stderr
+
+
+def test_missing_bag_and_mixed_experiments_are_refused(run_cli, bags):
+    r = train(run_cli, bags, "--bag", bags / "nowhere", "--out", bags / "bad")
+    assert r.returncode == 1 and "nowhere" in r.stderr
+    r = train(run_cli, bags, "--bag", bags / "exp1", "--bag", bags / "exp2", "--out", bags / "bad")
+    assert r.returncode == 1 and "holds exp2" in r.stderr, r.stderr
+
+
+def test_rollout_writes_curves_and_refuses_bad_input(run_cli, bags):
+    out = bags / "models_r"
+    assert train(run_cli, bags, "--bag", bags / "exp1", "--model", "fm", "--out", out).returncode == 0
+    r = run_cli("rollout", "--model", out, "--bag", bags / "exp1", "--trajectories", "100", "--cache", bags / "cache")
+    assert r.returncode == 0, r.stderr
+    sim = json.loads((out / "mental_simulation.json").read_text())
+    assert sim["trajectories"] == 100 and [c["group"] for c in sim["curves"]] == ["theta", "ef"]
+    assert (out / "mental_simulation.png").read_bytes()[1:4] == b"PNG"
+    r = run_cli("rollout", "--model", out, "--bag", bags / "exp1", "--trajectories", "1000", "--cache", bags / "cache")
+    assert r.returncode == 1 and "only 149 windows" in r.stderr, r.stderr
+    r = run_cli("rollout", "--model", out, "--bag", bags / "exp2", "--cache", bags / "cache")
+    assert r.returncode == 1 and "holds exp2" in r.stderr, r.stderr
+    (out / "fm.json").write_text("{broken")
+    r = run_cli("rollout", "--model", out, "--bag", bags / "exp1", "--cache", bags / "cache")
+    assert r.returncode == 1 and "fm.json" in r.stderr and "not a model description" in r.stderr, r.stderr

@@ -84,7 +84,14 @@ pub fn fit(
     let mut x = take_rows(&problem.inputs, n_in, rows);
     let mut y = take_rows(&problem.targets(), n_out, rows);
     let input = Standardizer::fit(&x, n_in);
-    let output = Standardizer::fit(&y, n_out);
+    let mut output = Standardizer::fit(&y, n_out);
+    // A target column that never varies (colour within exp 2's transitions for a delta FM)
+    // is predicted exactly: scale the network's residual noise on it down to nothing.
+    for j in 0..n_out {
+        if (0..rows.len()).all(|r| y[r * n_out + j] == y[j]) {
+            output.std[j] = 1e-6 * output.mean[j].abs().max(1e-3);
+        }
+    }
     input.apply_in_place(&mut x);
     output.apply_in_place(&mut y);
     let spec = MlpSpec {
@@ -125,12 +132,19 @@ pub fn fit(
     })
 }
 
-/// Predictions in raw units for rows of `inputs`, with the problem's offset added.
+/// Predictions in raw units for rows of `inputs`, with the problem's offset added and
+/// angular outputs (Euler angles) wrapped into (−π, π].
 pub fn predict(
     model: &Regressor,
     inputs: &[f32],
     offset_columns: Option<&[usize]>,
+    heads: &[HeadInfo],
 ) -> Result<Vec<f32>, TrainError> {
+    let angular: Vec<usize> = heads
+        .iter()
+        .filter(|h| h.angular)
+        .flat_map(|h| h.start..h.start + h.len)
+        .collect();
     let mut out = Vec::with_capacity(inputs.len());
     let n_in = model.mlp.spec().inputs;
     let n_out = model.mlp.spec().outputs();
@@ -141,6 +155,13 @@ pub fn predict(
             for (row_out, row_in) in y.chunks_exact_mut(n_out).zip(chunk.chunks_exact(n_in)) {
                 for (v, &c) in row_out.iter_mut().zip(cols) {
                     *v += row_in[c];
+                }
+            }
+        }
+        if !angular.is_empty() {
+            for row_out in y.chunks_exact_mut(n_out) {
+                for &c in &angular {
+                    row_out[c] = wrap_angle(row_out[c] as f64) as f32;
                 }
             }
         }

@@ -450,7 +450,12 @@ pub fn cross_validate(
                         acc: &mut Vec<FigureAcc>|
          -> Result<(), TrainError> {
             let inputs = take_rows(&problem.inputs, problem.input_names.len(), test);
-            let prediction = predict(model, &inputs, problem.offset_columns.as_deref())?;
+            let prediction = predict(
+                model,
+                &inputs,
+                problem.offset_columns.as_deref(),
+                &problem.heads,
+            )?;
             let truth = take_rows(&problem.truth, problem.output_names.len(), test);
             let mae = head_mae(&prediction, &truth, &problem.heads);
             let baseline = mean_baseline_mae(&problem.truth, &problem.heads, &train, test);
@@ -514,6 +519,7 @@ pub fn cross_validate(
                             &base,
                             &take_rows(&base_problem.inputs, base_problem.input_names.len(), test),
                             None,
+                            &[],
                         )?,
                         &test_truth,
                         &base_problem.heads,
@@ -527,7 +533,7 @@ pub fn cross_validate(
                         format!("pre-network {tag}"),
                         progress,
                     )?;
-                    let theta_hat = predict(&pre, &test_pre_inputs, None)?;
+                    let theta_hat = predict(&pre, &test_pre_inputs, None, &[])?;
                     let theta_truth = take_rows(&pre_problem.truth, 7, test);
                     let pre_mae = head_mae(&theta_hat, &theta_truth, &pre_problem.heads)[0];
                     let pre_baseline =
@@ -535,7 +541,7 @@ pub fn cross_validate(
                     single(&mut acc, "im_pre/pre", "rad", pre_mae, pre_baseline);
                     let assembled = problems::base_inputs_from(exp, &test_pre_inputs, &theta_hat);
                     let assembly_mae = head_mae(
-                        &predict(&base, &assembled, None)?,
+                        &predict(&base, &assembled, None, &[])?,
                         &test_truth,
                         &base_problem.heads,
                     )[0];
@@ -559,7 +565,7 @@ pub fn cross_validate(
                     let zeros = vec![0f32; rows * 7];
                     let zero_inputs = problems::base_inputs_from(exp, &test_pre_inputs, &zeros);
                     let zero_mae = head_mae(
-                        &predict(&base, &zero_inputs, None)?,
+                        &predict(&base, &zero_inputs, None, &[])?,
                         &test_truth,
                         &base_problem.heads,
                     )[0];
@@ -577,7 +583,7 @@ pub fn cross_validate(
                     let sampled_inputs =
                         problems::base_inputs_from(exp, &test_pre_inputs, &sampled);
                     let sampled_mae = head_mae(
-                        &predict(&base, &sampled_inputs, None)?,
+                        &predict(&base, &sampled_inputs, None, &[])?,
                         &test_truth,
                         &base_problem.heads,
                     )[0];

@@ -54,6 +54,7 @@ impl LoadedModel {
             &self.regressor,
             inputs,
             self.meta.problem.offset_columns.as_deref(),
+            &self.meta.problem.heads,
         )
     }
 

@@ -1,7 +1,7 @@
 //! The paper's learning problems as input/target matrices cut from a [`Dataset`].
 
 use causal_arm_dataset::{
-    Dataset, Experiment, FeatureGroup, action_names, state_groups, state_names,
+    Dataset, Experiment, FeatureGroup, action_names, state_groups, state_names, wrap_angle,
 };
 use serde::{Deserialize, Serialize};
 
@@ -84,12 +84,33 @@ impl Problem {
         self.truth.len() / self.output_names.len()
     }
 
-    /// The network's training targets: truth − offset.
+    /// The network's training targets: truth − offset, with differences of Euler angles
+    /// wrapped into (−π, π] so a turn across ±π is a small step, not a 2π jump.
     pub fn targets(&self) -> Vec<f32> {
-        match &self.offset {
-            None => self.truth.clone(),
-            Some(offset) => self.truth.iter().zip(offset).map(|(t, o)| t - o).collect(),
-        }
+        let Some(offset) = &self.offset else {
+            return self.truth.clone();
+        };
+        let width = self.output_names.len();
+        let angular: Vec<bool> = (0..width)
+            .map(|c| {
+                self.heads
+                    .iter()
+                    .any(|h| h.angular && (h.start..h.start + h.len).contains(&c))
+            })
+            .collect();
+        self.truth
+            .iter()
+            .zip(offset)
+            .enumerate()
+            .map(|(i, (t, o))| {
+                let d = t - o;
+                if angular[i % width] {
+                    wrap_angle(d as f64) as f32
+                } else {
+                    d
+                }
+            })
+            .collect()
     }
 }
 

@@ -95,6 +95,8 @@ pub struct Mlp {
     spec: MlpSpec,
     /// Hidden layers then the output layer.
     layers: Vec<Layer>,
+    /// The layers as plain row-major vectors for [`Mlp::forward_rows`], made on first use.
+    flat: std::sync::OnceLock<Vec<(Vec<f32>, Vec<f32>)>>,
 }
 
 impl Mlp {
@@ -120,7 +122,11 @@ impl Mlp {
                 Ok(Layer { weight, bias })
             })
             .collect::<Result<Vec<_>>>()?;
-        Ok(Self { spec, layers })
+        Ok(Self {
+            spec,
+            layers,
+            flat: Default::default(),
+        })
     }
 
     /// The architecture.
@@ -136,6 +142,58 @@ impl Mlp {
     /// Replaces the parameters (the trainer's optimizer owns them while fitting).
     pub(crate) fn set_layers(&mut self, layers: Vec<Layer>) {
         self.layers = layers;
+        self.flat = std::sync::OnceLock::new();
+    }
+
+    fn flat_layers(&self) -> Result<&[(Vec<f32>, Vec<f32>)]> {
+        if let Some(flat) = self.flat.get() {
+            return Ok(flat);
+        }
+        let flat = self
+            .layers
+            .iter()
+            .map(|l| {
+                Ok((
+                    l.weight.flatten_all()?.to_vec1::<f32>()?,
+                    l.bias.to_vec1::<f32>()?,
+                ))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(self.flat.get_or_init(|| flat))
+    }
+
+    /// Outputs for row-major inputs `[rows, inputs]` through the training kernels (gemm
+    /// with strides, fused bias + vectorised tanh): inference for services and attribution
+    /// methods that evaluate the network on many rows. Agrees with [`Mlp::forward`] to
+    /// the fast tanh's 3.4e-7 relative error.
+    pub fn forward_rows(&self, x: &[f32]) -> Result<Vec<f32>> {
+        let n_in = self.spec.inputs;
+        if n_in == 0 || !x.len().is_multiple_of(n_in) {
+            return Err(MlpError::Shape(format!(
+                "input length {} is not a multiple of the {n_in} input features",
+                x.len()
+            )));
+        }
+        let rows = x.len() / n_in;
+        let flat = self.flat_layers()?;
+        let last = flat.len() - 1;
+        let mut input = x.to_vec();
+        let mut width = n_in;
+        for (i, (weight, bias)) in flat.iter().enumerate() {
+            let out = bias.len();
+            let mut z = vec![0f32; rows * out];
+            crate::kernels::matmul_nt(&mut z, &input, weight, rows, out, width);
+            if i < last {
+                crate::kernels::bias_tanh(&mut z, bias);
+            } else {
+                for row in z.chunks_exact_mut(out) {
+                    row.iter_mut().zip(bias).for_each(|(v, b)| *v += b);
+                }
+            }
+            input = z;
+            width = out;
+        }
+        Ok(input)
     }
 
     /// Outputs `[n, outputs]` for inputs `[n, inputs]`.
@@ -193,6 +251,10 @@ impl Mlp {
                 bias: get(format!("layers.{i}.bias"), &[w[1]])?,
             });
         }
-        Ok(Self { spec, layers })
+        Ok(Self {
+            spec,
+            layers,
+            flat: Default::default(),
+        })
     }
 }

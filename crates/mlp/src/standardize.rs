@@ -137,9 +137,7 @@ impl Regressor {
         }
         let mut z = x.to_vec();
         self.input.apply_in_place(&mut z);
-        let rows = z.len() / width;
-        let xt = Tensor::from_vec(z, (rows, width), &Device::Cpu)?;
-        let mut y = self.mlp.forward(&xt)?.flatten_all()?.to_vec1::<f32>()?;
+        let mut y = self.mlp.forward_rows(&z)?;
         self.output.invert_in_place(&mut y);
         Ok(y)
     }

@@ -312,3 +312,22 @@ fn loss_matches_the_candle_forward_pass() {
     let bad = Tensor::zeros((3, 4), DType::F32, &Device::Cpu).unwrap();
     assert!(fitter.loss_and_gradients(&bad, &bad).is_err());
 }
+
+#[test]
+fn fast_row_forward_matches_candle_forward() {
+    let mlp = Mlp::new(spec(), 21).unwrap();
+    let (x, _) = data(300, 8);
+    let reference = mlp
+        .forward(&Tensor::from_vec(x.clone(), (300, 5), &Device::Cpu).unwrap())
+        .unwrap()
+        .flatten_all()
+        .unwrap()
+        .to_vec1::<f32>()
+        .unwrap();
+    let fast = mlp.forward_rows(&x).unwrap();
+    assert_eq!(fast.len(), reference.len());
+    for (a, b) in fast.iter().zip(&reference) {
+        assert!((a - b).abs() <= 1e-5 * (1.0 + b.abs()), "{a} vs {b}");
+    }
+    assert!(mlp.forward_rows(&x[..7]).is_err());
+}

@@ -1,6 +1,7 @@
 //! `causal-arm`: one entry point for every tool and node of the project.
 
 mod bag_cmd;
+mod explain_cmd;
 mod generate_cmd;
 mod kinematics_cmd;
 mod launch_cmd;
@@ -45,6 +46,8 @@ enum Command {
     Train(train_cmd::TrainArgs),
     /// Mental simulation: chain a trained forward model over fresh trajectories.
     Rollout(rollout_cmd::RolloutArgs),
+    /// SHAP attributions of a forward model: heat map, PDPs and relevance report.
+    Explain(explain_cmd::ExplainArgs),
     /// Call a service with a JSON request (like `ros2 service call`).
     Service(service_cmd::ServiceArgs),
 }
@@ -69,6 +72,7 @@ fn main() -> std::process::ExitCode {
         Command::Topic(args) => topic_cmd::run(args, &ros_args),
         Command::Train(args) => train_cmd::run(args),
         Command::Rollout(args) => rollout_cmd::run(args),
+        Command::Explain(args) => explain_cmd::run(args),
         Command::Service(args) => service_cmd::run(args, &ros_args),
     };
     match result {

@@ -310,6 +310,11 @@ pub fn kmeans(data: &[f32], width: usize, k: usize, seed: u64) -> Result<Backgro
     Background::weighted(&out, width, out_w)
 }
 
+/// Observation `o` samples coalitions from the stream `seed + o · OBSERVATION_SEED_STRIDE`,
+/// so a caller explaining rows `start..` in a separate call passes
+/// `seed + start · OBSERVATION_SEED_STRIDE` and gets the same values as one call.
+pub const OBSERVATION_SEED_STRIDE: u64 = 0x9E37_79B9_7F4A_7C15;
+
 /// Settings of [`kernel_shap`].
 #[derive(Debug, Clone)]
 pub struct KernelOptions {
@@ -674,7 +679,7 @@ pub fn kernel_shap<M: BatchModel + ?Sized>(
         } else {
             let stream = options
                 .seed
-                .wrapping_add((o as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+                .wrapping_add((o as u64).wrapping_mul(OBSERVATION_SEED_STRIDE));
             sampled_coalitions(m, nsamples, &mut StdRng::seed_from_u64(stream))
         };
 

@@ -48,7 +48,8 @@ mod linalg;
 
 pub use deep::{DeepModel, DeepOptions, Precision, deep_shap};
 pub use kernel::{
-    Background, BatchModel, FnModel, KernelOptions, RegressorModel, kernel_shap, kmeans,
+    Background, BatchModel, FnModel, KernelOptions, OBSERVATION_SEED_STRIDE, RegressorModel,
+    kernel_shap, kmeans,
 };
 
 /// Why attributions could not be computed; bad input is reported, never a panic.

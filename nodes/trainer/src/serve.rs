@@ -27,8 +27,9 @@ pub struct ModelSet {
     metrics: serde_json::Value,
 }
 
-/// Checks a flat batch: row count, length and finiteness, naming the field.
-fn check_batch(field: &str, values: &[f64], rows: usize, width: usize) -> Result<(), String> {
+/// Checks a flat batch of a service request: length and finiteness, naming the field,
+/// row and column (shared with the explainer's service).
+pub fn check_batch(field: &str, values: &[f64], rows: usize, width: usize) -> Result<(), String> {
     if values.len() != rows * width {
         return Err(format!(
             "{field} has {} values, expected rows × {width} = {}",

@@ -154,6 +154,55 @@ class GetModelInfoReply(IdlStruct, typename="causal_arm_msgs::srv::dds_::GetMode
     metrics_json: str = ""
 
 
+@dataclass
+class ExplainRequest(IdlStruct, typename="causal_arm_msgs::srv::dds_::Explain_Request_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    method: str = ""
+    state: t.sequence[t.float64] = field(default_factory=list)
+    action: t.sequence[t.float64] = field(default_factory=list)
+    rows: t.uint32 = 0
+    background: t.uint32 = 0
+
+
+@dataclass
+class ExplainReply(IdlStruct, typename="causal_arm_msgs::srv::dds_::Explain_Response_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    success: bool = False
+    message: str = ""
+    attributions: t.sequence[t.float64] = field(default_factory=list)
+    input_names: t.sequence[str] = field(default_factory=list)
+    output_names: t.sequence[str] = field(default_factory=list)
+    rows: t.uint32 = 0
+
+
+@dataclass
+class Relevance(IdlStruct, typename="causal_arm_msgs::msg::dds_::Relevance_"):
+    header: Header = field(default_factory=Header)
+    experiment: str = ""
+    method: str = ""
+    observations: t.uint32 = 0
+    background: t.uint32 = 0
+    action_names: t.sequence[str] = field(default_factory=list)
+    state_names: t.sequence[str] = field(default_factory=list)
+    mean_abs_shap: t.sequence[t.float64] = field(default_factory=list)
+    state_scale: t.sequence[t.float64] = field(default_factory=list)
+    affected: t.sequence[bool] = field(default_factory=list)
+    threshold: t.float64 = 0.0
+    rule: str = ""
+
+
+def latched_qos(depth: int = 1) -> Qos:
+    """rclcpp's transient-local profile for latched topics (/robot_description, reports)."""
+    return Qos(
+        Policy.Reliability.Reliable(max_blocking_time=1_000_000_000),
+        Policy.History.KeepLast(depth),
+        Policy.Durability.TransientLocal,
+        Policy.DataRepresentation(use_cdrv0_representation=True),
+    )
+
+
 class ServiceClient:
     """A ROS 2 service client as rmw_cyclonedds makes one, on a CycloneDDS participant."""
 

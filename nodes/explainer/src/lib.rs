@@ -470,6 +470,7 @@ pub fn change_scale(data: &Dataset) -> Vec<f64> {
 }
 
 /// One explanation run: what was explained, against what, and the attributions.
+#[derive(Debug)]
 pub struct Explanation {
     /// How it was made.
     pub settings: Settings,

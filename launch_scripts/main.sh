@@ -4,7 +4,9 @@
 # kinematics, runs both experiments' data-generation graphs (simulator, babbler and
 # recorder as three ROS 2 node processes over DDS, inside a private loopback-only network
 # namespace) on the quick profile, cross-validates the paper's models on those bags,
-# runs the exp1 mental simulation, and asks the trainer node for a prediction over DDS.
+# runs the exp1 mental simulation, asks the trainer node for a prediction over DDS, explains
+# the exp2 forward model with Deep SHAP and Kernel SHAP (heat map, partial dependence plots,
+# relevance report) and reads the explainer node's latched relevance report over DDS.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --locked --workspace --bins
@@ -38,5 +40,23 @@ tests/netns-run bash -c '
     --json "{\"state\":[0,0.5,0,-1.2,0,0.8,0,0.55,0,0.45],\"action\":[0.05,0,0,0,0,0,0],\"rows\":1}"
   status=$?; kill -INT $node; wait $node; exit $status'
 
-echo "==> done: bags under bags/ (rosbag2 MCAP), models and metrics.json under models/,"
-echo "    mental simulation figure models/quick_exp1/mental_simulation.png"
+echo "==> knowledge extraction: Deep SHAP and Kernel SHAP of the exp2 forward model (200 observations)"
+$BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method deep
+$BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method kernel --no-pair-plots
+
+echo "==> the explainer node's latched /explainer/relevance report over DDS (state features no action affects)"
+tests/netns-run bash -c '
+  export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-7}" RUST_LOG="${RUST_LOG:-warn}"
+  target/release/causal_arm_explainer --ros-args -p model_dir:=models/quick_exp2 -p bag:=bags/quick_exp2 & node=$!
+  target/release/causal-arm topic echo /explainer/relevance --type causal_arm_msgs/msg/Relevance \
+    --qos latched --count 1 --timeout 60 > models/quick_exp2/relevance_topic.json
+  status=$?; kill -INT $node; wait $node
+  python3 -c "import json; m = json.load(open(\"models/quick_exp2/relevance_topic.json\")); print(\"not affected by any action:\", [s for s, a in zip(m[\"state_names\"], m[\"affected\"]) if not a])"
+  exit $status'
+
+echo "==> done"
+echo "    bags (rosbag2 MCAP):      bags/quick_exp1 bags/quick_exp2 bags/fresh_exp1"
+echo "    models + metrics.json:    models/quick_exp1 models/quick_exp2"
+echo "    mental simulation:        models/quick_exp1/mental_simulation.png"
+echo "    SHAP heat map and PDPs:   models/quick_exp2/explain-deep/{heatmap,pdp_grid}.png, pdp/"
+echo "    relevance report:         models/quick_exp2/explain-{deep,kernel}/relevance.{json,csv}"

@@ -39,6 +39,9 @@ fn now() -> Time {
 }
 
 fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
+    // First of all: a SIGINT that arrives while the node starts up must not be lost (a
+    // background job of a non-interactive shell starts with SIGINT ignored until then).
+    let stop = stop_flag();
     let specs = [
         ParamSpec::new(
             "model_dir",
@@ -145,7 +148,6 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let service = ExplainService::new(explainer, pool, deep, kernel);
     let server = node.server::<Explain>(EXPLAIN)?;
     tracing::info!("serving {EXPLAIN}; relevance report latched on {RELEVANCE}");
-    let stop = stop_flag();
     while !stop.load(Ordering::SeqCst) {
         let handled = smol::block_on(async {
             futures::select! {

@@ -20,6 +20,9 @@ const ROLLOUT: &str = "/trainer/rollout";
 const MODEL_INFO: &str = "/trainer/model_info";
 
 fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
+    // First of all: a SIGINT that arrives while the node starts up must not be lost (a
+    // background job of a non-interactive shell starts with SIGINT ignored until then).
+    let stop = stop_flag();
     let specs = [
         ParamSpec::new(
             "model_dir",
@@ -58,7 +61,6 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         models.experiment(),
         models.model_info(&Default::default()).models.join(", ")
     );
-    let stop = stop_flag();
     while !stop.load(Ordering::SeqCst) {
         // Wake on whichever service has a request, or every 200 ms to notice a stop.
         let handled = smol::block_on(async {

@@ -53,6 +53,16 @@ def run_cli(causal_arm_bin):
     return run
 
 
+def bag_and_forward_model(run_cli, d, generate_args, train_args):
+    """Generates `d/bag` (`causal-arm generate GENERATE_ARGS`) and trains a forward model on
+    it into `d/models` (cache `d/cache`); fails the test with the tool's stderr otherwise."""
+    r = run_cli("generate", *generate_args, "--out", d / "bag")
+    assert r.returncode == 0, r.stderr
+    r = run_cli("train", "--bag", d / "bag", "--model", "fm", *train_args, "--out", d / "models",
+                "--cache", d / "cache", timeout=300)
+    assert r.returncode == 0, r.stderr
+
+
 def network_interfaces() -> list:
     """Interfaces of this process's network namespace (/proc/net/dev is per namespace;
     /sys/class/net is not, unless sysfs is remounted)."""

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import ros_idl as idl
+from conftest import bag_and_forward_model
 from model_numpy import load_safetensors, numpy_predict
 
 DOMAIN = 43
@@ -22,11 +23,8 @@ DOMAIN = 43
 def exp2(run_cli, tmp_path_factory):
     """A small exp2 bag, an FM trained on it and a deep explanation of it."""
     d = tmp_path_factory.mktemp("explainer")
-    r = run_cli("generate", "exp2", "--profile", "quick", "--episodes", "4", "--seed", "3", "--out", d / "bag")
-    assert r.returncode == 0, r.stderr
-    r = run_cli("train", "--bag", d / "bag", "--model", "fm", "--epochs", "30", "--folds", "2", "--max-folds", "1",
-                "--fm-hidden", "64,64", "--out", d / "models", "--cache", d / "cache", timeout=300)
-    assert r.returncode == 0, r.stderr
+    bag_and_forward_model(run_cli, d, ["exp2", "--profile", "quick", "--episodes", "4", "--seed", "3"],
+                          ["--epochs", "30", "--folds", "2", "--max-folds", "1", "--fm-hidden", "64,64"])
     r = run_cli("explain", "--model", d / "models", "--bag", d / "bag", "--method", "deep", "--samples", "200",
                 "--cache", d / "cache", "--out", d / "deep", timeout=300)
     assert r.returncode == 0, r.stderr

@@ -174,6 +174,19 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
             report.unaffected.join(", ")
         );
     }
+    // The mental-simulation figure, if `causal-arm rollout` was run on this model.
+    let mental = args.model.join("mental_simulation.json");
+    if let Ok(text) = std::fs::read_to_string(&mental) {
+        let result: causal_arm_trainer::mental::MentalSimulation = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not a mental simulation result", mental.display()))?;
+        let stem = out.join("mental_simulation");
+        crate::rollout_cmd::draw_mental_simulation(
+            &stem,
+            &result,
+            &explanation.experiment.to_string(),
+        )?;
+        eprintln!("wrote {}.png and {}.svg", stem.display(), stem.display());
+    }
     let pairs = written
         .files
         .iter()

@@ -5,49 +5,14 @@ and a corpus of bad requests that must get error replies while the node keeps se
 import json
 import math
 import os
-import pathlib
 import signal
-import struct
 import subprocess
-import time
 
 import numpy as np
 import pytest
 
 import ros_idl as idl
-
-
-def load_safetensors(path: pathlib.Path) -> dict:
-    """Reads a safetensors file with numpy only (format: u64 header size, JSON header, data)."""
-    raw = path.read_bytes()
-    (size,) = struct.unpack("<Q", raw[:8])
-    header = json.loads(raw[8:8 + size])
-    data = raw[8 + size:]
-    out = {}
-    for name, info in header.items():
-        if name == "__metadata__":
-            continue
-        assert info["dtype"] == "F32", name
-        start, end = info["data_offsets"]
-        out[name] = np.frombuffer(data[start:end], dtype="<f4").reshape(info["shape"]).astype(np.float64)
-    return out
-
-
-def numpy_predict(model_dir: pathlib.Path, name: str, inputs: np.ndarray) -> np.ndarray:
-    """The model's prediction from its files alone: standardise, tanh layers, linear, un-standardise."""
-    meta = json.loads((model_dir / f"{name}.json").read_text())
-    t = load_safetensors(model_dir / f"{name}.safetensors")
-    h = (inputs - t["input.mean"]) / t["input.std"]
-    layers = len(meta["architecture"]["hidden"]) + 1
-    for i in range(layers):
-        h = h @ t[f"layers.{i}.weight"].T + t[f"layers.{i}.bias"]
-        if i < layers - 1:
-            h = np.tanh(h)
-    y = h * t["output.std"] + t["output.mean"]
-    offset = meta["problem"]["offset_columns"]
-    if offset is not None:
-        y = y + inputs[:, offset]
-    return y
+from model_numpy import numpy_predict
 
 
 @pytest.fixture(scope="module")

@@ -154,11 +154,7 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
         println!(
             "{:<14} {:<26} {:>9.2e}  {}",
             v.name,
-            if v.affected {
-                "relevant"
-            } else {
-                "not affected by any action"
-            },
+            v.verdict(),
             v.score,
             v.strongest_action
         );

@@ -311,7 +311,8 @@ unsafe fn raw_gemm(
 ///
 /// Adam's second moments and the gradients of saturated tanh units decay into the
 /// subnormal range, where every operation takes a slow microcode path (a 10× slowdown was
-/// seen in PyTorch on this machine). Called only on the trainer's own worker threads.
+/// seen in PyTorch on this machine). Called only on worker threads of private pools (the
+/// trainer's, and `causal_arm_shap`'s), never on a caller's thread.
 pub fn flush_denormals() {
     #[cfg(target_arch = "x86_64")]
     {
@@ -320,8 +321,8 @@ pub fn flush_denormals() {
         const FTZ_DAZ: u32 = 0x8040;
         // SAFETY: setting FTZ/DAZ only changes how this thread rounds subnormal results and
         // inputs (to zero); it cannot break memory safety. The threads that call this belong
-        // to the trainer's pool and run only its numeric code, for which flushing values
-        // below 1.2e-38 is harmless.
+        // to private pools (training, SHAP) that run only numeric code, for which flushing
+        // values below 1.2e-38 (f32) or 2.2e-308 (f64) is harmless.
         #[allow(deprecated)]
         unsafe {
             _mm_setcsr(_mm_getcsr() | FTZ_DAZ)

@@ -17,6 +17,7 @@ mod network;
 mod standardize;
 mod train;
 
+pub use kernels::flush_denormals;
 pub use network::{Head, Layer, Mlp, MlpSpec};
 pub use standardize::{Regressor, Standardizer};
 pub use train::{Fitter, Optimizer, TrainConfig};

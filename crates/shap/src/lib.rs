@@ -192,25 +192,7 @@ pub(crate) fn pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(n)
         .thread_name(|i| format!("shap-{i}"))
-        .start_handler(|_| flush_denormals())
+        .start_handler(|_| causal_arm_mlp::flush_denormals())
         .build()
         .map_err(|e| ShapError::Threads(e.to_string()))
-}
-
-/// Makes the calling thread flush subnormal floats to zero (FTZ and DAZ in MXCSR).
-fn flush_denormals() {
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[allow(deprecated)]
-        use core::arch::x86_64::{_mm_getcsr, _mm_setcsr};
-        const FTZ_DAZ: u32 = 0x8040;
-        // SAFETY: FTZ/DAZ only change how this thread rounds subnormal inputs and results
-        // (to zero); memory safety is unaffected. Only the threads of this crate's private
-        // pools call it, and they run only attribution arithmetic, where values below
-        // 1.2e-38 (f32) or 2.2e-308 (f64) are negligible against the 1e-6 relative accuracy.
-        #[allow(deprecated)]
-        unsafe {
-            _mm_setcsr(_mm_getcsr() | FTZ_DAZ)
-        };
-    }
 }

@@ -358,14 +358,7 @@ impl Explainer {
             )));
         }
         let picks = Picks::draw(data.rows(), settings)?;
-        let inputs = |rows: &[usize]| -> Vec<f32> {
-            let mut out = Vec::with_capacity(rows.len() * self.n_inputs());
-            for &r in rows {
-                out.extend_from_slice(data.state(r));
-                out.extend_from_slice(data.action(r));
-            }
-            out
-        };
+        let inputs = |rows: &[usize]| forward_inputs(data, rows);
         let observations = inputs(&picks.observations);
         let background = match settings.background_kind {
             BackgroundKind::Sample => {
@@ -396,6 +389,16 @@ impl Explainer {
             state_scale: change_scale(data),
         })
     }
+}
+
+/// The forward model's input rows `[state ++ action]` of the transitions `rows`.
+pub fn forward_inputs(data: &Dataset, rows: &[usize]) -> Vec<f32> {
+    let mut out = Vec::with_capacity(rows.len() * (data.state_width() + data.action_width()));
+    for &r in rows {
+        out.extend_from_slice(data.state(r));
+        out.extend_from_slice(data.action(r));
+    }
+    out
 }
 
 /// Row indices of the observations and of the background pool.

@@ -213,12 +213,7 @@ pub fn write_all(
         })
         .collect();
     let mut ranked: Vec<(usize, usize, f64)> = (0..relevance.action_names.len())
-        .flat_map(|a| (0..relevance.state_names.len()).map(move |j| (a, j, 0.0)))
-        .map(|(a, j, _)| {
-            let scale = relevance.states[j].scale;
-            let m = relevance.mean_abs_shap[a][j];
-            (a, j, if scale > 0.0 { m / scale } else { 0.0 })
-        })
+        .flat_map(|a| (0..relevance.state_names.len()).map(move |j| (a, j, relevance.score(a, j))))
         .collect();
     ranked.sort_by(|p, q| q.2.total_cmp(&p.2));
     for (a, j, _) in ranked {

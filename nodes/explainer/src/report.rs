@@ -30,6 +30,17 @@ pub struct StateVerdict {
     pub driven_by: Vec<String>,
 }
 
+impl StateVerdict {
+    /// The verdict in words, as the CSV and the CLI print it.
+    pub fn verdict(&self) -> &'static str {
+        if self.affected {
+            "relevant"
+        } else {
+            "not affected by any action"
+        }
+    }
+}
+
 /// What one action drives.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ActionVerdict {
@@ -155,11 +166,7 @@ impl Relevance {
             out.push_str(&format!(
                 "{},{},{:.6e},{:.6e},{},{:.6e},{}\n",
                 v.name,
-                if v.affected {
-                    "relevant"
-                } else {
-                    "not affected by any action"
-                },
+                v.verdict(),
                 v.score,
                 v.max_mean_abs_shap,
                 v.strongest_action,
@@ -168,6 +175,12 @@ impl Relevance {
             ));
         }
         out
+    }
+
+    /// Score (mean |SHAP| / scale) of action number `action` on state feature number
+    /// `state`, by the rule the verdicts use.
+    pub fn score(&self, action: usize, state: usize) -> f64 {
+        score(self.mean_abs_shap[action][state], self.states[state].scale)
     }
 
     /// Whether `action` drives `state` under the report's rule.

@@ -6,16 +6,20 @@ use causal_arm_dataset::{ActionSource, Dataset, Experiment, from_bag};
 use causal_arm_explainer::output::write_all;
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
 use causal_arm_explainer::serve::{ExplainService, relevance_msg};
-use causal_arm_explainer::{Explainer, Method, Settings, relevance};
+use causal_arm_explainer::{Explainer, Method, Settings, forward_inputs, relevance};
 use causal_arm_msgs::srv::Explain_Request;
 use causal_arm_trainer::model_file::describe;
 use causal_arm_trainer::{
     ModelKind, Profile, TrainOptions, cross_validate, load_model, save_model,
 };
 
+/// A fresh directory per call: the tests run in parallel threads of one process, so the
+/// process id alone would let one test overwrite the other's model while it loads.
 fn temp(name: &str) -> std::path::PathBuf {
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
     let dir = std::env::temp_dir().join(format!(
-        "causal-arm-explainer-{name}-{}",
+        "causal-arm-explainer-{name}-{}-{call}",
         std::process::id()
     ));
     let _ = std::fs::remove_dir_all(&dir);
@@ -140,15 +144,7 @@ fn explanations_are_efficient_find_colour_unaffected_and_are_served() {
     }
 
     // The service: good request answered in the message layout, bad ones refused.
-    let pool: Vec<f32> = (0..200)
-        .flat_map(|r| {
-            data.state(r)
-                .iter()
-                .chain(data.action(r))
-                .copied()
-                .collect::<Vec<_>>()
-        })
-        .collect();
+    let pool = pool_rows(&data, 200);
     let mut deep = Settings::for_method(Method::Deep);
     deep.background = 30;
     let mut kernel = Settings::for_method(Method::Kernel);
@@ -174,7 +170,7 @@ fn explanations_are_efficient_find_colour_unaffected_and_are_served() {
         .chain(data.action(row))
         .copied()
         .collect();
-    let bg = causal_arm_shap::Background::sample(&service_pool_head(&data, 30), 31).unwrap();
+    let bg = causal_arm_shap::Background::sample(&pool_rows(&data, 30), 31).unwrap();
     let (a, _) = service.explainer().attribute(&x, &bg, &deep).unwrap();
     for j in 0..23 {
         for i in 0..31 {
@@ -228,45 +224,28 @@ fn explanations_are_efficient_find_colour_unaffected_and_are_served() {
     assert!(service.explain(&good).success);
 }
 
-fn service_pool_head(data: &Dataset, rows: usize) -> Vec<f32> {
-    (0..rows)
-        .flat_map(|r| {
-            data.state(r)
-                .iter()
-                .chain(data.action(r))
-                .copied()
-                .collect::<Vec<_>>()
-        })
-        .collect()
+/// The first `rows` transitions as `[state ++ action]` rows, the service's pool order.
+fn pool_rows(data: &Dataset, rows: usize) -> Vec<f32> {
+    forward_inputs(data, &(0..rows).collect::<Vec<_>>())
 }
 
 #[test]
 fn bad_settings_and_mismatched_data_are_errors() {
     let (data, explainer) = trained();
-    let mut s = Settings::for_method(Method::Deep);
-    s.samples = 0;
-    assert!(
+    let error_with = |change: &dyn Fn(&mut Settings)| {
+        let mut s = Settings::for_method(Method::Deep);
+        change(&mut s);
         explainer
             .explain_dataset(&data, &s, &mut |_, _| {})
             .unwrap_err()
             .to_string()
-            .contains("samples")
-    );
-    let mut s = Settings::for_method(Method::Deep);
-    s.background_kind = causal_arm_explainer::BackgroundKind::Kmeans;
+    };
+    assert!(error_with(&|s| s.samples = 0).contains("samples"));
     assert!(
-        explainer
-            .explain_dataset(&data, &s, &mut |_, _| {})
-            .unwrap_err()
-            .to_string()
+        error_with(&|s| s.background_kind = causal_arm_explainer::BackgroundKind::Kmeans)
             .contains("equal weights")
     );
-    let mut s = Settings::for_method(Method::Deep);
-    s.samples = data.rows();
-    let err = explainer
-        .explain_dataset(&data, &s, &mut |_, _| {})
-        .unwrap_err()
-        .to_string();
+    let err = error_with(&|s| s.samples = data.rows());
     assert!(
         err.contains(&format!("the data has {} transitions", data.rows())),
         "{err}"

@@ -40,6 +40,49 @@ pub fn take_next<M: 'static + serde::de::DeserializeOwned>(
     ))
 }
 
+/// What one turn of a service node's loop did (see [`serve_until_stopped`]).
+pub enum Served {
+    /// A request was answered.
+    Replied,
+    /// A request was handled but its reply could not be sent.
+    ReplyNotSent,
+    /// A request arrived that could not be read (rustdds dropped it).
+    Unreadable,
+}
+
+impl Served {
+    /// The outcome of `server.async_receive_request()` then `send_response(...)`: pass the
+    /// receive result and, for a received request, whether the reply was sent.
+    pub fn from_turn<E>(turn: Result<bool, E>) -> Self {
+        match turn {
+            Ok(true) => Self::Replied,
+            Ok(false) => Self::ReplyNotSent,
+            Err(_) => Self::Unreadable,
+        }
+    }
+}
+
+/// A service node's main loop: `next()` waits for one request on any of the node's
+/// servers and answers it; the loop wakes at least every 200 ms to notice `stop`, logs
+/// replies that could not be sent and requests that could not be read, and keeps serving.
+pub fn serve_until_stopped<F, Fut>(stop: &std::sync::atomic::AtomicBool, mut next: F)
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = Served>,
+{
+    while !stop.load(std::sync::atomic::Ordering::SeqCst) {
+        let turn = smol::block_on(smol::future::or(async { Some(next().await) }, async {
+            smol::Timer::after(std::time::Duration::from_millis(200)).await;
+            None
+        }));
+        match turn {
+            None | Some(Served::Replied) => {}
+            Some(Served::ReplyNotSent) => tracing::warn!("could not send a reply"),
+            Some(Served::Unreadable) => tracing::warn!("could not read a request"),
+        }
+    }
+}
+
 /// Runs a node's main and turns errors into a message and exit code 1.
 pub fn node_main(
     run: impl FnOnce(&crate::RosArgs) -> anyhow::Result<()>,

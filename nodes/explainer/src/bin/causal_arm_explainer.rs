@@ -4,22 +4,20 @@
 //! get a `success: false` reply saying why, and the node keeps serving.
 
 use std::path::PathBuf;
-use std::sync::atomic::Ordering;
-use std::time::{Duration, SystemTime};
+use std::time::SystemTime;
 
 use anyhow::bail;
 use causal_arm_dataset::{ActionSource, Cache, load_bags};
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
 use causal_arm_explainer::serve::{ExplainService, relevance_msg};
-use causal_arm_explainer::{Explainer, Method, Settings, relevance};
+use causal_arm_explainer::{Explainer, Method, Settings, forward_inputs, relevance};
 use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_msgs::msg::Relevance as RelevanceMsg;
 use causal_arm_msgs::srv::Explain;
 use causal_arm_msgs::std_msgs::msg::Header;
-use causal_arm_node::run::{node_main, stop_flag};
+use causal_arm_node::run::{Served, node_main, serve_until_stopped, stop_flag};
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
 use causal_arm_trainer::load_model;
-use futures::FutureExt;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 
@@ -134,11 +132,7 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let mut rows: Vec<usize> = (0..data.rows()).collect();
     rows.shuffle(&mut rand::rngs::StdRng::seed_from_u64(seed));
     rows.truncate(POOL_ROWS);
-    let mut pool = Vec::with_capacity(rows.len() * explainer.n_inputs());
-    for &r in &rows {
-        pool.extend_from_slice(data.state(r));
-        pool.extend_from_slice(data.action(r));
-    }
+    let pool = forward_inputs(&data, &rows);
     let (mut deep, mut kernel) = (
         Settings::for_method(Method::Deep),
         Settings::for_method(Method::Kernel),
@@ -148,19 +142,14 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let service = ExplainService::new(explainer, pool, deep, kernel);
     let server = node.server::<Explain>(EXPLAIN)?;
     tracing::info!("serving {EXPLAIN}; relevance report latched on {RELEVANCE}");
-    while !stop.load(Ordering::SeqCst) {
-        let handled = smol::block_on(async {
-            futures::select! {
-                r = server.async_receive_request().fuse() => r.map(|(id, req)| server.send_response(id, service.explain(&req)).is_ok()).ok(),
-                _ = smol::Timer::after(Duration::from_millis(200)).fuse() => Some(true),
-            }
-        });
-        match handled {
-            Some(true) => {}
-            Some(false) => tracing::warn!("could not send a reply"),
-            None => tracing::warn!("could not read a request"),
-        }
-    }
+    serve_until_stopped(&stop, || async {
+        Served::from_turn(
+            server
+                .async_receive_request()
+                .await
+                .map(|(id, req)| server.send_response(id, service.explain(&req)).is_ok()),
+        )
+    });
     tracing::info!("stopping");
     Ok(())
 }

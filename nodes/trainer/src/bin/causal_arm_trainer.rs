@@ -3,12 +3,9 @@
 //! `/trainer/model_info`). Every request gets a reply; bad ones a `success: false` reply
 //! saying why, and the node keeps serving.
 
-use std::sync::atomic::Ordering;
-use std::time::Duration;
-
 use anyhow::bail;
 use causal_arm_msgs::srv::{GetModelInfo, PredictAction, PredictNextState, Rollout};
-use causal_arm_node::run::{node_main, stop_flag};
+use causal_arm_node::run::{Served, node_main, serve_until_stopped, stop_flag};
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode};
 use causal_arm_trainer::serve::ModelSet;
 use futures::FutureExt;
@@ -61,24 +58,14 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         models.experiment(),
         models.model_info(&Default::default()).models.join(", ")
     );
-    while !stop.load(Ordering::SeqCst) {
-        // Wake on whichever service has a request, or every 200 ms to notice a stop.
-        let handled = smol::block_on(async {
-            futures::select! {
-                r = next_state.async_receive_request().fuse() => r.map(|(id, req)| next_state.send_response(id, models.predict_next_state(&req)).is_ok()).ok(),
-                r = action.async_receive_request().fuse() => r.map(|(id, req)| action.send_response(id, models.predict_action(&req)).is_ok()).ok(),
-                r = rollout.async_receive_request().fuse() => r.map(|(id, req)| rollout.send_response(id, models.rollout(&req)).is_ok()).ok(),
-                r = info.async_receive_request().fuse() => r.map(|(id, req)| info.send_response(id, models.model_info(&req)).is_ok()).ok(),
-                _ = smol::Timer::after(Duration::from_millis(200)).fuse() => Some(true),
-            }
-        });
-        match handled {
-            Some(true) => {}
-            Some(false) => tracing::warn!("could not send a reply"),
-            // A request that does not deserialize: rustdds drops it; log and keep serving.
-            None => tracing::warn!("could not read a request"),
+    serve_until_stopped(&stop, || async {
+        futures::select! {
+            r = next_state.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| next_state.send_response(id, models.predict_next_state(&req)).is_ok())),
+            r = action.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| action.send_response(id, models.predict_action(&req)).is_ok())),
+            r = rollout.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| rollout.send_response(id, models.rollout(&req)).is_ok())),
+            r = info.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| info.send_response(id, models.model_info(&req)).is_ok())),
         }
-    }
+    });
     tracing::info!("stopping");
     Ok(())
 }

@@ -6,8 +6,10 @@ implementations installed from PyPI (cyclonedds, rosbags, mcap, pybullet).
 namespace, so DDS traffic never leaves the machine.
 """
 
+import contextlib
 import os
 import pathlib
+import signal
 import subprocess
 
 import pytest
@@ -75,9 +77,36 @@ def in_private_netns() -> bool:
     return network_interfaces() == ["lo"]
 
 
-@pytest.fixture
-def private_netns():
+def require_private_netns():
     """Refuse to start a DDS participant unless we run inside a loopback-only namespace."""
     if not in_private_netns():
         pytest.fail("DDS tests must run inside tests/netns-run (found interfaces: "
                     + ", ".join(network_interfaces()) + ")")
+
+
+@pytest.fixture
+def private_netns():
+    require_private_netns()
+
+
+@pytest.fixture(scope="module")
+def private_netns_module():
+    """`private_netns` for module-scoped fixtures (a node shared by a module's tests)."""
+    require_private_netns()
+
+
+@contextlib.contextmanager
+def node_process(binary, ros_args, env):
+    """Runs a node binary (`BINARY --ros-args ROS_ARGS…`, output captured) for the duration
+    of the block, then stops it with SIGINT as a user would (killed after 10 s)."""
+    proc = subprocess.Popen([str(binary), "--ros-args", *map(str, ros_args)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        yield proc
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()

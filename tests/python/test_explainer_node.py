@@ -5,7 +5,6 @@ and bad input for both."""
 
 import json
 import os
-import signal
 import subprocess
 import time
 
@@ -13,7 +12,7 @@ import numpy as np
 import pytest
 
 import ros_idl as idl
-from conftest import bag_and_forward_model
+from conftest import bag_and_forward_model, node_process
 from model_numpy import load_safetensors, numpy_predict
 
 DOMAIN = 43
@@ -96,26 +95,10 @@ def test_cli_refuses_a_bag_of_the_other_experiment_and_a_missing_model(exp2, run
 @pytest.fixture(scope="module")
 def explainer_node(exp2, causal_arm_bin, private_netns_module):
     d, _ = exp2
-    binary = causal_arm_bin.parent / "causal_arm_explainer"
     env = dict(os.environ, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp", ROS_DOMAIN_ID=str(DOMAIN))
-    proc = subprocess.Popen([str(binary), "--ros-args", "-p", f"model_dir:={d / 'models'}", "-p", f"bag:={d / 'bag'}",
-                             "-p", f"cache:={d / 'cache'}"], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    yield proc
-    proc.send_signal(signal.SIGINT)
-    try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-
-
-@pytest.fixture(scope="module")
-def private_netns_module():
-    from conftest import in_private_netns, network_interfaces
-
-    if not in_private_netns():
-        pytest.fail("DDS tests must run inside tests/netns-run (found interfaces: " + ", ".join(network_interfaces()) + ")")
+    params = ["-p", f"model_dir:={d / 'models'}", "-p", f"bag:={d / 'bag'}", "-p", f"cache:={d / 'cache'}"]
+    with node_process(causal_arm_bin.parent / "causal_arm_explainer", params, env) as proc:
+        yield proc
 
 
 @pytest.fixture(scope="module")

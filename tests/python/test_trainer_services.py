@@ -5,13 +5,13 @@ and a corpus of bad requests that must get error replies while the node keeps se
 import json
 import math
 import os
-import signal
 import subprocess
 
 import numpy as np
 import pytest
 
 import ros_idl as idl
+from conftest import node_process
 from model_numpy import numpy_predict
 
 
@@ -29,25 +29,9 @@ def model_dir(run_cli, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def trainer_node(model_dir, causal_arm_bin, private_netns_module):
-    binary = causal_arm_bin.parent / "causal_arm_trainer"
     env = dict(os.environ, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp", ROS_DOMAIN_ID="41")
-    proc = subprocess.Popen([str(binary), "--ros-args", "-p", f"model_dir:={model_dir}"], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    yield proc
-    proc.send_signal(signal.SIGINT)
-    try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-
-
-@pytest.fixture(scope="module")
-def private_netns_module():
-    from conftest import in_private_netns, network_interfaces
-
-    if not in_private_netns():
-        pytest.fail("DDS tests must run inside tests/netns-run (found interfaces: " + ", ".join(network_interfaces()) + ")")
+    with node_process(causal_arm_bin.parent / "causal_arm_trainer", ["-p", f"model_dir:={model_dir}"], env) as proc:
+        yield proc
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,9 @@ and a corpus of bad requests that must get error replies while the node keeps se
 import json
 import math
 import os
+import signal
 import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -16,12 +18,18 @@ from model_numpy import numpy_predict
 
 
 @pytest.fixture(scope="module")
-def model_dir(run_cli, tmp_path_factory):
-    d = tmp_path_factory.mktemp("trainer")
-    r = run_cli("generate", "exp1", "--profile", "quick", "--steps", "1200", "--seed", "5", "--out", d / "bag")
+def exp1_bag(run_cli, tmp_path_factory):
+    bag = tmp_path_factory.mktemp("trainer_bag") / "bag"
+    r = run_cli("generate", "exp1", "--profile", "quick", "--steps", "1200", "--seed", "5", "--out", bag)
     assert r.returncode == 0, r.stderr
+    return bag
+
+
+@pytest.fixture(scope="module")
+def model_dir(run_cli, exp1_bag, tmp_path_factory):
+    d = tmp_path_factory.mktemp("trainer")
     for model, hidden in [("fm", "--fm-hidden"), ("im-mono", "--im-hidden")]:
-        r = run_cli("train", "--bag", d / "bag", "--model", model, "--epochs", "3", "--folds", "2",
+        r = run_cli("train", "--bag", exp1_bag, "--model", model, "--epochs", "3", "--folds", "2",
                     hidden, "32,32", "--out", d / "models", "--cache", d / "cache", timeout=300)
         assert r.returncode == 0, r.stderr
     return d / "models"
@@ -149,3 +157,81 @@ def test_cli_service_call_gets_the_same_reply(run_cli, trainer_node, model_dir, 
     r = run_cli("service", "call", "/trainer/predict_next_state", "--type", "causal_arm_msgs/srv/PredictNextState",
                 "--json", '{"rows": "x"}', env=env)
     assert r.returncode != 0 and "does not match the request" in r.stderr
+
+
+def test_node_trains_from_a_bag_then_serves_what_it_trained(causal_arm_bin, exp1_bag, tmp_path, private_netns):
+    from cyclonedds.domain import DomainParticipant
+
+    out = tmp_path / "trained"
+    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp", ROS_DOMAIN_ID="42")
+    params = [f"model_dir:={out}", f"bag:={exp1_bag}", "models:=fm", "epochs:=2", "folds:=2", "max_folds:=1",
+              "lr_schedule:=cosine", f"cache:={tmp_path / 'cache'}"]
+    args = [a for p in params for a in ("-p", p)]
+    with node_process(causal_arm_bin.parent / "causal_arm_trainer", args, env) as proc:
+        participant = DomainParticipant(42)
+        info = idl.ServiceClient(participant, "/trainer/model_info", idl.GetModelInfoRequest, idl.GetModelInfoReply)
+        nxt = idl.ServiceClient(participant, "/trainer/predict_next_state", idl.PredictNextStateRequest, idl.PredictNextStateReply)
+        assert info.wait_for_server(timeout=120), proc.stderr.read() if proc.poll() is not None else "no server"
+        reply = info.call(idl.GetModelInfoRequest(model="fm"))
+        assert reply.success, reply.message
+        assert reply.models == ["fm"]
+        fm = json.loads(reply.metrics_json)
+        assert fm["folds"] == 2 and fm["folds_run"] == 1
+        assert fm["options"]["lr_schedule"] == "cosine:0.01" and fm["runs"][0]["epochs"] == 2
+        # The served numbers are those of the files the node wrote.
+        assert nxt.wait_for_server()
+        state = np.array([[0.1, 0.5, 0.0, -1.2, 0.0, 0.8, 0.0, 0.55, 0.0, 0.45]])
+        action = np.array([[0.05, 0.0, -0.02, 0.0, 0.0, 0.01, 0.0]])
+        r = nxt.call(idl.PredictNextStateRequest(state=state.ravel().tolist(), action=action.ravel().tolist(), rows=1))
+        assert r.success, r.message
+        np.testing.assert_allclose(r.next_state, numpy_predict(out, "fm", np.concatenate([state, action], axis=1))[0],
+                                   rtol=1e-4, atol=1e-5)
+    assert proc.returncode == 0, proc.stderr.read()
+    assert json.loads((out / "metrics.json").read_text())["models"]["fm"]["figures"][0]["key"] == "fm/theta"
+    assert sorted(p.name for p in out.iterdir()) == ["fm.json", "fm.safetensors", "metrics.json"]
+
+
+@pytest.mark.parametrize("params,message", [
+    (["models:=nope"], 'parameter models: unknown model "nope"'),
+    (["models:=fm", "lr_schedule:=linear"], 'parameter lr_schedule: unknown learning-rate schedule "linear"'),
+    (["models:=fm", "folds:=1"], "parameter folds must be at least 2, got 1"),
+    (["models:=fm", "profile:=huge"], 'parameter profile: unknown profile "huge"'),
+])
+def test_node_refuses_bad_training_parameters(causal_arm_bin, exp1_bag, tmp_path, private_netns, params, message):
+    args = ["--ros-args", "-p", f"model_dir:={tmp_path / 'out'}", "-p", f"bag:={exp1_bag}"]
+    args += [a for p in params for a in ("-p", p)]
+    r = subprocess.run([str(causal_arm_bin.parent / "causal_arm_trainer"), *args], capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and message in r.stderr, r.stderr
+
+
+def test_node_refuses_a_missing_bag_naming_it(causal_arm_bin, tmp_path, private_netns):
+    missing = tmp_path / "no_such_bag"
+    r = subprocess.run([str(causal_arm_bin.parent / "causal_arm_trainer"), "--ros-args", "-p", f"model_dir:={tmp_path / 'out'}",
+                        "-p", f"bag:={missing}"], capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and str(missing) in r.stderr, r.stderr
+
+
+def test_ctrl_c_during_training_stops_the_node_cleanly(causal_arm_bin, exp1_bag, tmp_path, private_netns):
+    out = tmp_path / "trained"
+    args = ["--ros-args", "-p", f"model_dir:={out}", "-p", f"bag:={exp1_bag}", "-p", "models:=fm",
+            "-p", "epochs:=100000", "-p", f"cache:={tmp_path / 'cache'}"]
+    proc = subprocess.Popen([str(causal_arm_bin.parent / "causal_arm_trainer"), *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        seen = ""
+        while "epoch" not in seen and time.monotonic() < deadline:
+            line = proc.stderr.readline()
+            if not line:
+                break
+            seen += line
+        assert "training fm fold 1/5: 100000 epochs" in seen, seen
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=20) == 0, proc.stderr.read()
+        assert "stopped before epoch" in proc.stderr.read()
+        # Nothing half-written: no model of an unfinished run, no metrics.
+        assert not (out / "fm.safetensors").exists() and not (out / "metrics.json").exists()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

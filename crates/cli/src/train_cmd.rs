@@ -3,12 +3,12 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Experiment, load_bags};
 use causal_arm_trainer::fit::Progress;
-use causal_arm_trainer::model_file::describe;
+use causal_arm_trainer::job::train_and_save;
 use causal_arm_trainer::problems::FmTarget;
-use causal_arm_trainer::{Figure, ModelKind, Profile, TrainOptions, cross_validate, save_model};
+use causal_arm_trainer::{Figure, LrSchedule, ModelKind, Profile, TrainOptions};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -54,6 +54,10 @@ pub struct TrainArgs {
     /// Learning rate.
     #[arg(long, default_value_t = 1e-3)]
     lr: f64,
+    /// Learning-rate schedule: constant (the paper's), cosine (decay to 1 % over the
+    /// epochs) or cosine:FLOOR.
+    #[arg(long, default_value = "constant")]
+    lr_schedule: String,
     /// Seed of folds, weights and shuffles.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -127,6 +131,7 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
     let profile: Profile = args.profile.parse().map_err(anyhow::Error::msg)?;
     let action: ActionSource = args.action.parse().map_err(anyhow::Error::msg)?;
     let fm_target: FmTarget = args.fm_target.parse().map_err(anyhow::Error::msg)?;
+    let lr_schedule: LrSchedule = args.lr_schedule.parse().map_err(anyhow::Error::msg)?;
     let expected: Option<Experiment> = args
         .experiment
         .as_deref()
@@ -152,9 +157,11 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         im_hidden: args.im_hidden.clone(),
         batch_size: args.batch_size,
         learning_rate: args.lr,
+        lr_schedule,
         fm_target,
         seed: args.seed,
         max_folds: args.max_folds,
+        stop: None,
     };
 
     let start = Instant::now();
@@ -181,113 +188,55 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         None => ModelKind::all_for(data.experiment),
     };
 
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let metrics_path = args.out.join("metrics.json");
-    let mut metrics: serde_json::Map<String, serde_json::Value> =
-        std::fs::read_to_string(&metrics_path)
-            .ok()
-            .and_then(|t| serde_json::from_str(&t).ok())
-            .unwrap_or_default();
-    metrics.insert("experiment".into(), data.experiment.to_string().into());
-    metrics.insert("rows".into(), data.rows().into());
-    metrics.insert("sources".into(), serde_json::to_value(&data.sources)?);
-    let models_entry = metrics
-        .entry("models")
-        .or_insert_with(|| serde_json::Value::Object(Default::default()));
-
-    let mut all_figures = Vec::new();
-    for kind in kinds {
-        let mut bar: Option<ProgressBar> = None;
-        let mut epochs_planned = 0;
-        let mut on_progress = |p: Progress| match p {
-            Progress::Start {
-                label,
-                epochs,
-                rows,
-            } => {
-                if let Some(b) = bar.take() {
-                    b.finish_and_clear();
-                }
-                epochs_planned = epochs;
-                bar = Some(bar_for(&label, epochs, rows));
+    let mut bar: Option<ProgressBar> = None;
+    let mut epochs_planned = 0;
+    let mut on_progress = |p: Progress| match p {
+        Progress::Start {
+            label,
+            epochs,
+            rows,
+        } => {
+            if let Some(b) = bar.take() {
+                b.finish_and_clear();
             }
-            Progress::Rows(n) => {
-                if let Some(b) = &bar {
-                    b.inc(n as u64);
-                }
+            epochs_planned = epochs;
+            bar = Some(bar_for(&label, epochs, rows));
+        }
+        Progress::Rows(n) => {
+            if let Some(b) = &bar {
+                b.inc(n as u64);
             }
-            Progress::Epoch { epoch, loss } => {
-                if let Some(b) = &bar {
-                    b.set_message(format!("epoch {epoch}/{epochs_planned} loss {loss:.4}"));
-                }
+        }
+        Progress::Epoch { epoch, loss } => {
+            if let Some(b) = &bar {
+                b.set_message(format!("epoch {epoch}/{epochs_planned} loss {loss:.4}"));
             }
-        };
-        let report = cross_validate(&data, kind, &options, &mut on_progress)?;
-        if let Some(b) = bar.take() {
-            b.finish_and_clear();
         }
-        let folds_run = options
-            .max_folds
-            .unwrap_or(options.folds)
-            .min(options.folds);
-        for (name, model, problem, settings) in &report.models {
-            let meta = describe(
-                name,
-                data.experiment,
-                model,
-                problem,
-                settings,
-                format!(
-                    "fold 1 of {} ({} of {} rows)",
-                    options.folds,
-                    data.rows() - data.rows() / options.folds,
-                    data.rows()
-                ),
-                &data.sources,
-            );
-            let (weights, json) = save_model(&args.out, model, &meta)?;
-            eprintln!("wrote {} and {}", weights.display(), json.display());
-        }
-        for run in &report.runs {
-            eprintln!(
-                "  {}: {} epochs on {} rows in {:.1} s",
-                run.label, run.epochs, run.rows, run.wall_s
-            );
-        }
-        models_entry[kind.name()] = serde_json::json!({
-            "folds": options.folds,
-            "folds_run": folds_run,
-            "figures": report.figures,
-            "runs": report.runs,
-            "options": {
-                "profile": args.profile,
-                "fm_target": args.fm_target,
-                "action": args.action,
-                "batch_size": options.batch_size,
-                "learning_rate": options.learning_rate,
-                "fm_hidden": options.fm_hidden,
-                "im_hidden": options.im_hidden,
-                "seed": options.seed,
-            },
-        });
-        all_figures.extend(report.figures);
+    };
+    let saved = train_and_save(&data, &kinds, &options, action, &args.out, &mut on_progress)?;
+    if let Some(b) = bar.take() {
+        b.finish_and_clear();
     }
-    std::fs::write(
-        &metrics_path,
-        serde_json::to_string_pretty(&metrics)? + "\n",
-    )
-    .with_context(|| format!("cannot write {}", metrics_path.display()))?;
+    for pair in saved.written.chunks(2) {
+        let names: Vec<_> = pair.iter().map(|p| p.display().to_string()).collect();
+        eprintln!("wrote {}", names.join(" and "));
+    }
+    for run in &saved.runs {
+        eprintln!(
+            "  {}: {} epochs on {} rows in {:.1} s",
+            run.label, run.epochs, run.rows, run.wall_s
+        );
+    }
     println!(
         "{} on {} transitions ({} folds):",
         data.experiment,
         data.rows(),
         options.folds
     );
-    print_table(&all_figures);
+    print_table(&saved.figures);
     eprintln!(
         "wrote {} ({:.1} s in all)",
-        metrics_path.display(),
+        saved.metrics.display(),
         start.elapsed().as_secs_f64()
     );
     Ok(())

@@ -137,6 +137,7 @@ fn main() -> Result<(), Box<dyn Error>> {
                 learning_rate: 1e-3,
                 batch_size: batch,
                 seed: 0,
+                ..TrainConfig::default()
             };
             let mut fitter =
                 Fitter::new(Mlp::new(spec.clone(), 0)?, config)?.with_threads(args.threads);

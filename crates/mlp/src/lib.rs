@@ -20,7 +20,7 @@ mod train;
 pub use kernels::flush_denormals;
 pub use network::{Head, Layer, Mlp, MlpSpec};
 pub use standardize::{Regressor, Standardizer};
-pub use train::{Fitter, Optimizer, TrainConfig};
+pub use train::{Fitter, LrSchedule, Optimizer, TrainConfig};
 
 /// Why a network could not be built, trained, loaded or evaluated.
 #[derive(Debug, thiserror::Error)]

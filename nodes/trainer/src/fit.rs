@@ -1,5 +1,7 @@
 //! Fitting a problem on some rows and judging it on others.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use causal_arm_dataset::wrap_angle;
 use causal_arm_mlp::{Fitter, Head, Mlp, MlpSpec, Regressor, Standardizer, TrainConfig};
 use rand::{SeedableRng, rngs::StdRng, seq::SliceRandom};
@@ -70,13 +72,14 @@ pub fn training_rows(n: usize, test: &[usize]) -> Vec<usize> {
 }
 
 /// Trains a network for `problem` on `rows`, standardising inputs and targets with
-/// statistics of those rows only.
+/// statistics of those rows only. Setting `stop` ends the fit before its next epoch.
 pub fn fit(
     problem: &Problem,
     rows: &[usize],
     settings: &FitSettings,
     seed: u64,
     label: &str,
+    stop: Option<&AtomicBool>,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Regressor, TrainError> {
     let n_in = problem.input_names.len();
@@ -107,12 +110,19 @@ pub fn fit(
             .collect(),
     };
     let mut fitter = Fitter::new(Mlp::new(spec, seed)?, settings.train.clone())?;
+    fitter.plan_batches(fitter.batches_for(settings.epochs, rows.len()));
     progress(Progress::Start {
         label: label.to_owned(),
         epochs: settings.epochs,
         rows: rows.len(),
     });
     for epoch in 0..settings.epochs {
+        if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+            return Err(TrainError::Stopped {
+                label: label.to_owned(),
+                epoch,
+            });
+        }
         let loss = fitter.epoch(&x, &y, |n| progress(Progress::Rows(n)))?;
         if !loss.is_finite() {
             return Err(TrainError::Diverged {

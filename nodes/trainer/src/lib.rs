@@ -6,14 +6,18 @@
 //! as ROS 2 services, and `causal-arm train` drives [`cross_validate`] from the CLI.
 
 pub mod fit;
+pub mod job;
 pub mod mental;
 pub mod model_file;
 pub mod problems;
 pub mod serve;
 
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use causal_arm_dataset::{Dataset, Experiment};
+pub use causal_arm_mlp::LrSchedule;
 use causal_arm_mlp::{MlpError, Optimizer, Regressor, TrainConfig};
 use serde::{Deserialize, Serialize};
 
@@ -41,6 +45,14 @@ pub enum TrainError {
         /// Model and fold.
         label: String,
         /// Epoch.
+        epoch: usize,
+    },
+    /// Training was asked to stop (Ctrl-C in the trainer node).
+    #[error("{label}: stopped before epoch {} on request", epoch + 1)]
+    Stopped {
+        /// Model and fold.
+        label: String,
+        /// Epochs completed.
         epoch: usize,
     },
     /// A model file could not be read or written.
@@ -164,12 +176,16 @@ pub struct TrainOptions {
     pub batch_size: usize,
     /// Learning rate (the paper: 1e-3).
     pub learning_rate: f64,
+    /// Learning-rate schedule (the paper: constant).
+    pub lr_schedule: LrSchedule,
     /// How the FM predicts s(t+1).
     pub fm_target: FmTarget,
     /// Seed of folds, initial weights and shuffles.
     pub seed: u64,
     /// Run only the first `n` folds (each still holds out 1/k of the rows).
     pub max_folds: Option<usize>,
+    /// Set from elsewhere to end training before the next epoch.
+    pub stop: Option<Arc<AtomicBool>>,
 }
 
 impl Default for TrainOptions {
@@ -182,9 +198,11 @@ impl Default for TrainOptions {
             im_hidden: vec![256; 4],
             batch_size: 256,
             learning_rate: 1e-3,
+            lr_schedule: LrSchedule::Constant,
             fm_target: FmTarget::Delta,
             seed: 0,
             max_folds: None,
+            stop: None,
         }
     }
 }
@@ -199,6 +217,7 @@ impl TrainOptions {
                 learning_rate: self.learning_rate,
                 batch_size: self.batch_size,
                 seed: self.seed,
+                schedule: self.lr_schedule,
             },
             epochs: self.epochs.unwrap_or(epochs),
         }
@@ -431,7 +450,15 @@ pub fn cross_validate(
                          progress: &mut dyn FnMut(Progress)|
      -> Result<Regressor, TrainError> {
         let start = Instant::now();
-        let model = fit(problem, train, settings, options.seed, &label, progress)?;
+        let model = fit(
+            problem,
+            train,
+            settings,
+            options.seed,
+            &label,
+            options.stop.as_deref(),
+            progress,
+        )?;
         runs.push(RunRecord {
             label,
             epochs: settings.epochs,

@@ -122,6 +122,7 @@ fn adamw_steps_match_candle_nn() {
         learning_rate: 1e-2,
         batch_size: 64,
         seed: 5,
+        ..TrainConfig::default()
     };
     let mut fitter = Fitter::new(mlp.clone(), config).unwrap();
     let vars = vars_of(&mlp);
@@ -330,4 +331,70 @@ fn fast_row_forward_matches_candle_forward() {
         assert!((a - b).abs() <= 1e-5 * (1.0 + b.abs()), "{a} vs {b}");
     }
     assert!(mlp.forward_rows(&x[..7]).is_err());
+}
+
+#[test]
+fn cosine_schedule_runs_from_the_rate_to_its_floor() {
+    let cosine = LrSchedule::Cosine { floor: 0.01 };
+    assert_eq!(cosine.factor(0, Some(100)), 1.0);
+    assert!((cosine.factor(50, Some(100)) - 0.505).abs() < 1e-12);
+    assert!((cosine.factor(100, Some(100)) - 0.01).abs() < 1e-12);
+    assert!((cosine.factor(1000, Some(100)) - 0.01).abs() < 1e-12);
+    let mut last = 2.0;
+    for done in 0..=100 {
+        let f = cosine.factor(done, Some(100));
+        assert!(f <= last, "not decreasing at {done}");
+        last = f;
+    }
+    // Unplanned, every schedule is constant.
+    assert_eq!(cosine.factor(70, None), 1.0);
+    assert_eq!(LrSchedule::Constant.factor(70, Some(100)), 1.0);
+}
+
+#[test]
+fn schedules_parse_and_print_back() {
+    for text in ["constant", "cosine:0.01", "cosine:0"] {
+        let parsed: LrSchedule = text.parse().unwrap();
+        assert_eq!(parsed.to_string(), text);
+    }
+    assert_eq!(
+        "cosine".parse::<LrSchedule>().unwrap(),
+        LrSchedule::Cosine { floor: 0.01 }
+    );
+    for bad in ["linear", "cosine:2", "cosine:x", "constant:1", ""] {
+        let err = bad.parse::<LrSchedule>().unwrap_err();
+        assert!(err.contains("expected constant, cosine"), "{bad}: {err}");
+    }
+}
+
+#[test]
+fn planned_cosine_fit_decays_and_a_floor_of_one_is_constant() {
+    let (x, y) = data(400, 4);
+    let fit = |schedule: LrSchedule| {
+        let mut fitter = Fitter::new(
+            Mlp::new(spec(), 4).unwrap(),
+            TrainConfig {
+                batch_size: 50,
+                schedule,
+                ..TrainConfig::default()
+            },
+        )
+        .unwrap()
+        .with_threads(1);
+        let planned = fitter.batches_for(3, 400);
+        assert_eq!(planned, 24);
+        fitter.plan_batches(planned);
+        for _ in 0..3 {
+            fitter.epoch(&x, &y, |_| {}).unwrap();
+        }
+        fitter.into_mlp().layers()[0]
+            .weight
+            .flatten_all()
+            .unwrap()
+            .to_vec1::<f32>()
+            .unwrap()
+    };
+    let constant = fit(LrSchedule::Constant);
+    assert_eq!(fit(LrSchedule::Cosine { floor: 1.0 }), constant);
+    assert_ne!(fit(LrSchedule::Cosine { floor: 0.0 }), constant);
 }

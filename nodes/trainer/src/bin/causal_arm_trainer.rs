@@ -1,13 +1,24 @@
-//! `causal_arm_trainer`: serves a model directory written by `causal-arm train` as ROS 2
-//! services (`/trainer/predict_next_state`, `/trainer/predict_action`, `/trainer/rollout`,
-//! `/trainer/model_info`). Every request gets a reply; bad ones a `success: false` reply
-//! saying why, and the node keeps serving.
+//! `causal_arm_trainer`: serves a model directory as ROS 2 services
+//! (`/trainer/predict_next_state`, `/trainer/predict_action`, `/trainer/rollout`,
+//! `/trainer/model_info`). The directory is either written by `causal-arm train` or, with
+//! `-p bag:=DIR[,DIR…]`, trained by the node itself first (same files, same metrics).
+//! Every request gets a reply; bad ones a `success: false` reply saying why, and the node
+//! keeps serving.
 
-use anyhow::bail;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, bail};
+use causal_arm_dataset::{ActionSource, Cache, load_bags};
 use causal_arm_msgs::srv::{GetModelInfo, PredictAction, PredictNextState, Rollout};
 use causal_arm_node::run::{Served, node_main, serve_until_stopped, stop_flag};
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode};
+use causal_arm_trainer::fit::Progress;
+use causal_arm_trainer::job::train_and_save;
 use causal_arm_trainer::serve::ModelSet;
+use causal_arm_trainer::{ModelKind, TrainOptions};
 use futures::FutureExt;
 
 /// Service names (relative names resolve in the node's namespace, as ROS does).
@@ -27,6 +38,51 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             "directory written by `causal-arm train --out`",
         ),
         ParamSpec::new(
+            "bag",
+            ParamValue::String(String::new()),
+            "bag directories to train from first, comma-separated (empty: only load model_dir)",
+        ),
+        ParamSpec::new(
+            "models",
+            ParamValue::String("all".into()),
+            "models to train: fm, im-mono, im-pre, ablation or all",
+        ),
+        ParamSpec::new(
+            "profile",
+            ParamValue::String("paper".into()),
+            "epoch budgets when training: paper or quick",
+        ),
+        ParamSpec::new(
+            "epochs",
+            ParamValue::Integer(0),
+            "epochs of every network when training (0: the profile's)",
+        ),
+        ParamSpec::new(
+            "folds",
+            ParamValue::Integer(5),
+            "cross-validation folds when training",
+        ),
+        ParamSpec::new(
+            "max_folds",
+            ParamValue::Integer(0),
+            "train only the first N folds (0: all)",
+        ),
+        ParamSpec::new(
+            "lr_schedule",
+            ParamValue::String("constant".into()),
+            "learning-rate schedule: constant, cosine or cosine:FLOOR",
+        ),
+        ParamSpec::new(
+            "seed",
+            ParamValue::Integer(0),
+            "seed of folds, weights and shuffles",
+        ),
+        ParamSpec::new(
+            "cache",
+            ParamValue::String(String::new()),
+            "dataset cache directory (empty: $CAUSAL_ARM_CACHE or ~/.cache/causal-arm)",
+        ),
+        ParamSpec::new(
             "forward_model",
             ParamValue::String("fm".into()),
             "model file serving predict_next_state and rollout",
@@ -41,8 +97,18 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let dir = node.params().string("model_dir").to_owned();
     if dir.is_empty() {
         bail!(
-            "parameter model_dir is required: --ros-args -p model_dir:=DIR (a directory written by `causal-arm train`)"
+            "parameter model_dir is required: --ros-args -p model_dir:=DIR (a directory written by `causal-arm train`, or where to train to with -p bag:=DIR)"
         );
+    }
+    let bags = node.params().string("bag");
+    if !bags.is_empty() {
+        match train_first(&node, bags, std::path::Path::new(&dir), &stop) {
+            Err(e) if stop.load(Ordering::SeqCst) => {
+                tracing::info!("stopping: {e}");
+                return Ok(());
+            }
+            result => result?,
+        }
     }
     let models = ModelSet::load(
         std::path::Path::new(&dir),
@@ -69,6 +135,122 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     tracing::info!("stopping");
     Ok(())
 }
+
+/// Trains the requested models from `bags` into `out`, logging progress (to `/rosout` too).
+fn train_first(
+    node: &RosNode,
+    bags: &str,
+    out: &std::path::Path,
+    stop: &Arc<AtomicBool>,
+) -> anyhow::Result<()> {
+    let params = node.params();
+    let bags: Vec<PathBuf> = bags
+        .split(',')
+        .map(str::trim)
+        .filter(|b| !b.is_empty())
+        .map(PathBuf::from)
+        .collect();
+    let count = |name: &str, least: i64| -> anyhow::Result<usize> {
+        let value = params.integer(name);
+        if value < least {
+            bail!("parameter {name} must be at least {least}, got {value}");
+        }
+        Ok(value as usize)
+    };
+    let requested = params.string("models");
+    let kinds_wanted: Option<ModelKind> = match requested {
+        "all" => None,
+        other => Some(
+            other
+                .parse()
+                .map_err(|e| anyhow!("parameter models: {e}"))?,
+        ),
+    };
+    let options = TrainOptions {
+        profile: params
+            .string("profile")
+            .parse()
+            .map_err(|e| anyhow!("parameter profile: {e}"))?,
+        epochs: match count("epochs", 0)? {
+            0 => None,
+            n => Some(n),
+        },
+        folds: count("folds", 2)?,
+        max_folds: match count("max_folds", 0)? {
+            0 => None,
+            n => Some(n),
+        },
+        lr_schedule: params
+            .string("lr_schedule")
+            .parse()
+            .map_err(|e| anyhow!("parameter lr_schedule: {e}"))?,
+        seed: count("seed", 0)? as u64,
+        stop: Some(stop.clone()),
+        ..TrainOptions::default()
+    };
+    let cache = match params.string("cache") {
+        "" => Cache::new(Cache::default_dir()),
+        dir => Cache::new(PathBuf::from(dir)),
+    };
+    let action = ActionSource::Realized;
+    let (data, _) = load_bags(&bags, None, action, Some(&cache))?;
+    tracing::info!(
+        "training on {} {} transitions from {}",
+        data.rows(),
+        data.experiment,
+        bags.iter()
+            .map(|b| b.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let kinds = match kinds_wanted {
+        Some(kind) => vec![kind],
+        None => ModelKind::all_for(data.experiment),
+    };
+    let mut last_log = Instant::now();
+    let mut planned = 0;
+    let mut current = String::new();
+    let saved = train_and_save(&data, &kinds, &options, action, out, &mut |p| match p {
+        Progress::Start {
+            label,
+            epochs,
+            rows,
+        } => {
+            tracing::info!("training {label}: {epochs} epochs on {rows} rows");
+            (planned, current) = (epochs, label);
+        }
+        Progress::Rows(_) => {}
+        Progress::Epoch { epoch, loss } => {
+            if epoch == planned || last_log.elapsed() >= LOG_EVERY {
+                tracing::info!("{current}: epoch {epoch}/{planned}, loss {loss:.5}");
+                last_log = Instant::now();
+            }
+        }
+    })?;
+    for figure in &saved.figures {
+        let paper = figure
+            .paper
+            .map(|p| format!(", paper {p:.3e}"))
+            .unwrap_or_default();
+        tracing::info!(
+            "{}: MAE {:.3e} ± {:.1e} {} (mean baseline {:.3e}{paper})",
+            figure.key,
+            figure.mean,
+            figure.std,
+            figure.unit,
+            figure.baseline
+        );
+    }
+    tracing::info!(
+        "wrote {} model files and {}",
+        saved.written.len(),
+        saved.metrics.display()
+    );
+    Ok(())
+}
+
+/// Longest silence between training progress lines.
+const LOG_EVERY: Duration = Duration::from_secs(5);
 
 fn main() -> std::process::ExitCode {
     node_main(run)

@@ -44,6 +44,23 @@ def test_train_writes_models_and_metrics_beside_the_paper(run_cli, bags):
     assert set(json.loads((out / "metrics.json").read_text())["models"]) == {"fm", "im-mono"}
 
 
+def test_learning_curve_ends_at_the_reported_figure(run_cli, bags):
+    out = bags / "curve"
+    r = train(run_cli, bags, "--bag", bags / "exp1", "--model", "fm", "--epochs", "5", "--eval-every", "2",
+              "--lr-schedule", "cosine:0.1", "--out", out)
+    assert r.returncode == 0, r.stderr
+    fm = json.loads((out / "metrics.json").read_text())["models"]["fm"]
+    assert fm["options"]["lr_schedule"] == "cosine:0.1"
+    for fold, run in enumerate(fm["runs"]):
+        curve = run["curve"]
+        assert [p["epoch"] for p in curve] == [2, 4, 5]
+        assert all(0 < a["wall_s"] <= b["wall_s"] for a, b in zip(curve, curve[1:]))
+        # The last point is the finished model: the same held-out MAE as the fold's figure.
+        for head, figure in enumerate(fm["figures"]):
+            assert curve[-1]["mae"][head] == pytest.approx(figure["folds"][fold]["mae"], rel=1e-9)
+    assert "held-out MAE" in r.stderr
+
+
 @pytest.mark.parametrize("args,message", [
     (["--model", "nope"], "unknown model \"nope\""),
     (["--profile", "huge"], "unknown profile"),
@@ -53,6 +70,8 @@ def test_train_writes_models_and_metrics_beside_the_paper(run_cli, bags):
     (["--model", "im-pre", "--bag-exp2"], "exp1 only"),
     (["--fm-hidden", "0"], "hidden layer widths must be positive"),
     (["--action", "wished"], "unknown action source"),
+    (["--lr-schedule", "linear"], "unknown learning-rate schedule"),
+    (["--eval-every", "0"], "--eval-every must be at least 1"),
 ])
 def test_bad_train_input_is_refused(run_cli, bags, args, message):
     bag = bags / "exp1"

@@ -58,6 +58,10 @@ pub struct TrainArgs {
     /// epochs) or cosine:FLOOR.
     #[arg(long, default_value = "constant")]
     lr_schedule: String,
+    /// Measure the held-out MAE every N epochs: a learning curve per network, printed and
+    /// stored in metrics.json (costs one pass over the fold's test rows each time).
+    #[arg(long)]
+    eval_every: Option<usize>,
     /// Seed of folds, weights and shuffles.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -142,6 +146,9 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         "all" => None,
         other => Some(other.parse().map_err(anyhow::Error::msg)?),
     };
+    if args.eval_every == Some(0) {
+        bail!("--eval-every must be at least 1");
+    }
     if args.fm_hidden.is_empty()
         || args.im_hidden.is_empty()
         || args.fm_hidden.contains(&0)
@@ -162,6 +169,7 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         seed: args.seed,
         max_folds: args.max_folds,
         stop: None,
+        eval_every: args.eval_every,
     };
 
     let start = Instant::now();
@@ -226,6 +234,15 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
             "  {}: {} epochs on {} rows in {:.1} s",
             run.label, run.epochs, run.rows, run.wall_s
         );
+        for point in &run.curve {
+            let maes: Vec<String> = point.mae.iter().map(|m| format!("{m:.4e}")).collect();
+            eprintln!(
+                "    epoch {:>5} {:>8.1} s  held-out MAE {}",
+                point.epoch,
+                point.wall_s,
+                maes.join(" ")
+            );
+        }
     }
     println!(
         "{} on {} transitions ({} folds):",

@@ -71,17 +71,34 @@ pub fn training_rows(n: usize, test: &[usize]) -> Vec<usize> {
     (0..n).filter(|&r| !is_test[r]).collect()
 }
 
+/// A look at the model every few epochs, e.g. its held-out error for a learning curve.
+pub type Checkpoint<'a> = &'a mut dyn FnMut(usize, &Regressor) -> Result<(), TrainError>;
+
+/// Who watches a fit: progress reports, a stop request, and periodic checkpoints.
+pub struct FitWatch<'a> {
+    /// Progress of the fit.
+    pub progress: &'a mut dyn FnMut(Progress),
+    /// Once set, the fit ends before its next epoch with [`TrainError::Stopped`].
+    pub stop: Option<&'a AtomicBool>,
+    /// Called after every `n`-th epoch (and the last) with the epoch and the model so far.
+    pub checkpoint: Option<(usize, Checkpoint<'a>)>,
+}
+
 /// Trains a network for `problem` on `rows`, standardising inputs and targets with
-/// statistics of those rows only. Setting `stop` ends the fit before its next epoch.
+/// statistics of those rows only.
 pub fn fit(
     problem: &Problem,
     rows: &[usize],
     settings: &FitSettings,
     seed: u64,
     label: &str,
-    stop: Option<&AtomicBool>,
-    progress: &mut dyn FnMut(Progress),
+    watch: FitWatch<'_>,
 ) -> Result<Regressor, TrainError> {
+    let FitWatch {
+        progress,
+        stop,
+        mut checkpoint,
+    } = watch;
     let n_in = problem.input_names.len();
     let n_out = problem.output_names.len();
     let mut x = take_rows(&problem.inputs, n_in, rows);
@@ -134,6 +151,19 @@ pub fn fit(
             epoch: epoch + 1,
             loss,
         });
+        if let Some((every, look)) = checkpoint.as_mut() {
+            let done = epoch + 1;
+            if done % (*every).max(1) == 0 || done == settings.epochs {
+                look(
+                    done,
+                    &Regressor {
+                        mlp: fitter.mlp().clone(),
+                        input: input.clone(),
+                        output: output.clone(),
+                    },
+                )?;
+            }
+        }
     }
     Ok(Regressor {
         mlp: fitter.into_mlp(),

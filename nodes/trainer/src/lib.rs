@@ -22,7 +22,7 @@ use causal_arm_mlp::{MlpError, Optimizer, Regressor, TrainConfig};
 use serde::{Deserialize, Serialize};
 
 use fit::{
-    FitSettings, Progress, fit, folds, head_mae, mean_baseline_mae, predict, take_rows,
+    FitSettings, FitWatch, Progress, fit, folds, head_mae, mean_baseline_mae, predict, take_rows,
     training_rows,
 };
 pub use model_file::{LoadedModel, ModelMeta, load_model, save_model};
@@ -186,6 +186,8 @@ pub struct TrainOptions {
     pub max_folds: Option<usize>,
     /// Set from elsewhere to end training before the next epoch.
     pub stop: Option<Arc<AtomicBool>>,
+    /// Measure the held-out MAE every `n` epochs (a learning curve in each [`RunRecord`]).
+    pub eval_every: Option<usize>,
 }
 
 impl Default for TrainOptions {
@@ -203,6 +205,7 @@ impl Default for TrainOptions {
             seed: 0,
             max_folds: None,
             stop: None,
+            eval_every: None,
         }
     }
 }
@@ -322,6 +325,20 @@ pub struct RunRecord {
     pub rows: usize,
     /// Seconds spent training.
     pub wall_s: f64,
+    /// Held-out MAE per head during training (with `eval_every`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub curve: Vec<CurvePoint>,
+}
+
+/// One point of a learning curve.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CurvePoint {
+    /// Epochs done.
+    pub epoch: usize,
+    /// Training seconds so far (the evaluations themselves not counted).
+    pub wall_s: f64,
+    /// Held-out MAE of each head, in the heads' order.
+    pub mae: Vec<f64>,
 }
 
 /// What a saved model needs to know about its problem.
@@ -412,6 +429,23 @@ fn single(acc: &mut Vec<FigureAcc>, key: &str, unit: &str, mae: f64, baseline: f
     record(acc, prefix, &[head], &[mae], &[baseline]);
 }
 
+/// MAE of each head of `model` on rows `test` of `problem`.
+fn held_out_mae(
+    problem: &Problem,
+    model: &Regressor,
+    test: &[usize],
+) -> Result<Vec<f64>, TrainError> {
+    let inputs = take_rows(&problem.inputs, problem.input_names.len(), test);
+    let prediction = predict(
+        model,
+        &inputs,
+        problem.offset_columns.as_deref(),
+        &problem.heads,
+    )?;
+    let truth = take_rows(&problem.truth, problem.output_names.len(), test);
+    Ok(head_mae(&prediction, &truth, &problem.heads))
+}
+
 /// Cross-validates one model kind on `data`.
 pub fn cross_validate(
     data: &Dataset,
@@ -445,25 +479,40 @@ pub fn cross_validate(
     let mut models = Vec::new();
     let mut timed_fit = |problem: &Problem,
                          train: &[usize],
+                         test: &[usize],
                          settings: &FitSettings,
                          label: String,
                          progress: &mut dyn FnMut(Progress)|
      -> Result<Regressor, TrainError> {
         let start = Instant::now();
-        let model = fit(
-            problem,
-            train,
-            settings,
-            options.seed,
-            &label,
-            options.stop.as_deref(),
+        let mut curve = Vec::new();
+        let mut evaluating = std::time::Duration::ZERO;
+        let mut look = |epoch: usize, model: &Regressor| -> Result<(), TrainError> {
+            let trained = start.elapsed() - evaluating;
+            let mae = held_out_mae(problem, model, test)?;
+            evaluating = start.elapsed() - trained;
+            curve.push(CurvePoint {
+                epoch,
+                wall_s: trained.as_secs_f64(),
+                mae,
+            });
+            Ok(())
+        };
+        let watch = FitWatch {
             progress,
-        )?;
+            stop: options.stop.as_deref(),
+            checkpoint: options
+                .eval_every
+                .map(|every| (every, &mut look as fit::Checkpoint<'_>)),
+        };
+        let model = fit(problem, train, settings, options.seed, &label, watch)?;
+        let wall = start.elapsed() - evaluating;
         runs.push(RunRecord {
             label,
             epochs: settings.epochs,
             rows: train.len(),
-            wall_s: start.elapsed().as_secs_f64(),
+            wall_s: wall.as_secs_f64(),
+            curve,
         });
         Ok(model)
     };
@@ -476,15 +525,7 @@ pub fn cross_validate(
                         prefix: &str,
                         acc: &mut Vec<FigureAcc>|
          -> Result<(), TrainError> {
-            let inputs = take_rows(&problem.inputs, problem.input_names.len(), test);
-            let prediction = predict(
-                model,
-                &inputs,
-                problem.offset_columns.as_deref(),
-                &problem.heads,
-            )?;
-            let truth = take_rows(&problem.truth, problem.output_names.len(), test);
-            let mae = head_mae(&prediction, &truth, &problem.heads);
+            let mae = held_out_mae(problem, model, test)?;
             let baseline = mean_baseline_mae(&problem.truth, &problem.heads, &train, test);
             record(acc, prefix, &problem.heads, &mae, &baseline);
             Ok(())
@@ -493,7 +534,14 @@ pub fn cross_validate(
             ModelKind::Fm => {
                 let problem = problems::forward_model(data, options.fm_target);
                 let settings = options.settings("fm", exp, &options.fm_hidden);
-                let model = timed_fit(&problem, &train, &settings, format!("fm {tag}"), progress)?;
+                let model = timed_fit(
+                    &problem,
+                    &train,
+                    test,
+                    &settings,
+                    format!("fm {tag}"),
+                    progress,
+                )?;
                 evaluate(&problem, &model, "fm", &mut acc)?;
                 if f == 0 {
                     models.push((
@@ -510,6 +558,7 @@ pub fn cross_validate(
                 let model = timed_fit(
                     &problem,
                     &train,
+                    test,
                     &settings,
                     format!("im-mono {tag}"),
                     progress,
@@ -530,6 +579,7 @@ pub fn cross_validate(
                 let base = timed_fit(
                     &base_problem,
                     &train,
+                    test,
                     &base_settings,
                     format!("base IM {tag}"),
                     progress,
@@ -556,6 +606,7 @@ pub fn cross_validate(
                     let pre = timed_fit(
                         &pre_problem,
                         &train,
+                        test,
                         &pre_settings,
                         format!("pre-network {tag}"),
                         progress,

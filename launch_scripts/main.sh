@@ -4,7 +4,8 @@
 # kinematics, runs both experiments' data-generation graphs (simulator, babbler and
 # recorder as three ROS 2 node processes over DDS, inside a private loopback-only network
 # namespace) on the quick profile, cross-validates the paper's models on those bags,
-# runs the exp1 mental simulation, asks the trainer node for a prediction over DDS, explains
+# runs the exp1 mental simulation, has the trainer node train an FM from a bag and asks it
+# for a prediction over DDS, explains
 # the exp2 forward model with Deep SHAP and Kernel SHAP (heat map, partial dependence plots,
 # relevance report) and reads the explainer node's latched relevance report over DDS.
 set -euo pipefail
@@ -31,12 +32,13 @@ echo "==> mental simulation: the exp1 FM chained 10 steps on 6,000 fresh traject
 $BIN generate exp1 --steps 60010 --seed 99 --out bags/fresh_exp1 --overwrite
 $BIN rollout --model models/quick_exp1 --bag bags/fresh_exp1
 
-echo "==> the trainer node answering /trainer/predict_next_state over DDS"
+echo "==> the trainer node training an FM from the exp1 bag, then answering /trainer/predict_next_state over DDS"
 tests/netns-run bash -c '
   export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-7}" RUST_LOG="${RUST_LOG:-warn}"
-  target/release/causal_arm_trainer --ros-args -p model_dir:=models/quick_exp1 & node=$!
+  RUST_LOG="${RUST_LOG},causal_arm_trainer=info" target/release/causal_arm_trainer --ros-args -p model_dir:=models/node_exp1 \
+    -p bag:=bags/quick_exp1 -p models:=fm -p profile:=quick -p max_folds:=1 -p lr_schedule:=cosine & node=$!
   target/release/causal-arm service call /trainer/predict_next_state \
-    --type causal_arm_msgs/srv/PredictNextState --timeout 20 \
+    --type causal_arm_msgs/srv/PredictNextState --timeout 120 \
     --json "{\"state\":[0,0.5,0,-1.2,0,0.8,0,0.55,0,0.45],\"action\":[0.05,0,0,0,0,0,0],\"rows\":1}"
   status=$?; kill -INT $node; wait $node; exit $status'
 
@@ -56,7 +58,7 @@ tests/netns-run bash -c '
 
 echo "==> done"
 echo "    bags (rosbag2 MCAP):      bags/quick_exp1 bags/quick_exp2 bags/fresh_exp1"
-echo "    models + metrics.json:    models/quick_exp1 models/quick_exp2"
+echo "    models + metrics.json:    models/quick_exp1 models/quick_exp2 models/node_exp1 (trained by the node)"
 echo "    mental simulation:        models/quick_exp1/mental_simulation.png"
 echo "    SHAP heat map and PDPs:   models/quick_exp2/explain-deep/{heatmap,pdp_grid}.png, pdp/"
 echo "    relevance report:         models/quick_exp2/explain-{deep,kernel}/relevance.{json,csv}"

@@ -164,7 +164,7 @@ def test_node_trains_from_a_bag_then_serves_what_it_trained(causal_arm_bin, exp1
 
     out = tmp_path / "trained"
     env = dict(os.environ, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp", ROS_DOMAIN_ID="42")
-    params = [f"model_dir:={out}", f"bag:={exp1_bag}", "models:=fm", "epochs:=2", "folds:=2", "max_folds:=1",
+    params = [f"model_dir:={out}", f"bag:=[{exp1_bag}]", "models:=fm", "epochs:=2", "folds:=2", "max_folds:=1",
               "lr_schedule:=cosine", f"cache:={tmp_path / 'cache'}"]
     args = [a for p in params for a in ("-p", p)]
     with node_process(causal_arm_bin.parent / "causal_arm_trainer", args, env) as proc:
@@ -194,7 +194,8 @@ def test_node_trains_from_a_bag_then_serves_what_it_trained(causal_arm_bin, exp1
 @pytest.mark.parametrize("params,message", [
     (["models:=nope"], 'parameter models: unknown model "nope"'),
     (["models:=fm", "lr_schedule:=linear"], 'parameter lr_schedule: unknown learning-rate schedule "linear"'),
-    (["models:=fm", "folds:=1"], "parameter folds must be at least 2, got 1"),
+    (["models:=fm", "folds:=1"], 'parameter "folds" = 1 is outside its range [2, 1000000]'),
+    (["models:=fm", "epochs:=-3"], 'parameter "epochs" = -3 is outside its range'),
     (["models:=fm", "profile:=huge"], 'parameter profile: unknown profile "huge"'),
 ])
 def test_node_refuses_bad_training_parameters(causal_arm_bin, exp1_bag, tmp_path, private_netns, params, message):

@@ -23,6 +23,8 @@ pub enum ParamKind {
     String,
     /// `[1.0, 2.0]`.
     DoubleArray,
+    /// `[a, "b c"]`; a bare value is a one-element array.
+    StringArray,
 }
 
 impl fmt::Display for ParamKind {
@@ -33,6 +35,7 @@ impl fmt::Display for ParamKind {
             ParamKind::Double => "double",
             ParamKind::String => "string",
             ParamKind::DoubleArray => "double array",
+            ParamKind::StringArray => "string array",
         })
     }
 }
@@ -50,6 +53,8 @@ pub enum ParamValue {
     String(String),
     /// See [`ParamKind::DoubleArray`].
     DoubleArray(Vec<f64>),
+    /// See [`ParamKind::StringArray`].
+    StringArray(Vec<String>),
 }
 
 impl ParamValue {
@@ -61,6 +66,7 @@ impl ParamValue {
             ParamValue::Double(_) => ParamKind::Double,
             ParamValue::String(_) => ParamKind::String,
             ParamValue::DoubleArray(_) => ParamKind::DoubleArray,
+            ParamValue::StringArray(_) => ParamKind::StringArray,
         }
     }
 
@@ -74,6 +80,7 @@ impl ParamValue {
             ParamValue::Double(v) => P::Double(*v),
             ParamValue::String(v) => P::String(v.clone()),
             ParamValue::DoubleArray(v) => P::DoubleArray(v.clone()),
+            ParamValue::StringArray(v) => P::StringArray(v.clone()),
         }
     }
 }
@@ -86,6 +93,7 @@ impl fmt::Display for ParamValue {
             ParamValue::Double(v) => write!(f, "{v}"),
             ParamValue::String(v) => write!(f, "{v:?}"),
             ParamValue::DoubleArray(v) => write!(f, "{v:?}"),
+            ParamValue::StringArray(v) => write!(f, "{v:?}"),
         }
     }
 }
@@ -325,6 +333,14 @@ impl Params {
         }
     }
 
+    /// A declared string-array parameter (see [`Params::bool`] on panics).
+    pub fn string_array(&self, name: &str) -> &[String] {
+        match self.get(name) {
+            ParamValue::StringArray(v) => v,
+            other => panic!("parameter {name:?} is {}, not string array", other.kind()),
+        }
+    }
+
     /// Whether the node runs on simulated time.
     pub fn use_sim_time(&self) -> bool {
         self.bool("use_sim_time")
@@ -360,6 +376,17 @@ fn parse_value(spec: &ParamSpec, raw: &str) -> Result<ParamValue, ParamError> {
             };
             ParamValue::DoubleArray(items.ok_or_else(wrong)?)
         }
+        ParamKind::StringArray => match text.strip_prefix('[').and_then(|t| t.strip_suffix(']')) {
+            Some(inner) if inner.trim().is_empty() => ParamValue::StringArray(Vec::new()),
+            Some(inner) => ParamValue::StringArray(
+                inner
+                    .split(',')
+                    .map(|t| unquote(t.trim()).to_owned())
+                    .collect(),
+            ),
+            None if text.is_empty() => ParamValue::StringArray(Vec::new()),
+            None => ParamValue::StringArray(vec![unquote(text).to_owned()]),
+        },
     };
     if let Some((min, max)) = spec.range {
         let numbers: Vec<f64> = match &value {
@@ -407,7 +434,29 @@ mod tests {
             ParamSpec::new("sigma", ParamValue::Double(0.35), "spread"),
             ParamSpec::new("name", ParamValue::String("x".into()), "label"),
             ParamSpec::new("weights", ParamValue::DoubleArray(vec![]), "w"),
+            ParamSpec::new("bags", ParamValue::StringArray(vec![]), "b"),
         ]
+    }
+
+    #[test]
+    fn string_arrays_parse_as_ros_lists_or_one_bare_value() {
+        let specs = specs();
+        let spec = specs.iter().find(|s| s.name == "bags").unwrap();
+        let parse = |raw: &str| parse_value(spec, raw).unwrap();
+        assert_eq!(
+            parse("[a, 'b c', \"d\"]"),
+            ParamValue::StringArray(vec!["a".into(), "b c".into(), "d".into()])
+        );
+        assert_eq!(parse("[]"), ParamValue::StringArray(vec![]));
+        assert_eq!(parse(""), ParamValue::StringArray(vec![]));
+        assert_eq!(
+            parse("bags/x"),
+            ParamValue::StringArray(vec!["bags/x".into()])
+        );
+        assert_eq!(
+            parse("[bags/x]").to_ros(),
+            ros2_client::ParameterValue::StringArray(vec!["bags/x".into()])
+        );
     }
 
     #[test]

@@ -39,8 +39,8 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         ),
         ParamSpec::new(
             "bag",
-            ParamValue::String(String::new()),
-            "bag directories to train from first, comma-separated (empty: only load model_dir)",
+            ParamValue::StringArray(Vec::new()),
+            "bag directories to train from first, e.g. [bags/a, bags/b] (empty: only load model_dir)",
         ),
         ParamSpec::new(
             "models",
@@ -56,17 +56,20 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             "epochs",
             ParamValue::Integer(0),
             "epochs of every network when training (0: the profile's)",
-        ),
+        )
+        .with_range(0.0, 1e9),
         ParamSpec::new(
             "folds",
             ParamValue::Integer(5),
             "cross-validation folds when training",
-        ),
+        )
+        .with_range(2.0, 1e6),
         ParamSpec::new(
             "max_folds",
             ParamValue::Integer(0),
             "train only the first N folds (0: all)",
-        ),
+        )
+        .with_range(0.0, 1e6),
         ParamSpec::new(
             "lr_schedule",
             ParamValue::String("constant".into()),
@@ -100,9 +103,9 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             "parameter model_dir is required: --ros-args -p model_dir:=DIR (a directory written by `causal-arm train`, or where to train to with -p bag:=DIR)"
         );
     }
-    let bags = node.params().string("bag");
+    let bags = node.params().string_array("bag").to_vec();
     if !bags.is_empty() {
-        match train_first(&node, bags, std::path::Path::new(&dir), &stop) {
+        match train_first(&node, &bags, std::path::Path::new(&dir), &stop) {
             Err(e) if stop.load(Ordering::SeqCst) => {
                 tracing::info!("stopping: {e}");
                 return Ok(());
@@ -139,24 +142,14 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
 /// Trains the requested models from `bags` into `out`, logging progress (to `/rosout` too).
 fn train_first(
     node: &RosNode,
-    bags: &str,
+    bags: &[String],
     out: &std::path::Path,
     stop: &Arc<AtomicBool>,
 ) -> anyhow::Result<()> {
     let params = node.params();
-    let bags: Vec<PathBuf> = bags
-        .split(',')
-        .map(str::trim)
-        .filter(|b| !b.is_empty())
-        .map(PathBuf::from)
-        .collect();
-    let count = |name: &str, least: i64| -> anyhow::Result<usize> {
-        let value = params.integer(name);
-        if value < least {
-            bail!("parameter {name} must be at least {least}, got {value}");
-        }
-        Ok(value as usize)
-    };
+    let bags: Vec<PathBuf> = bags.iter().map(PathBuf::from).collect();
+    // Declared ranges keep these non-negative.
+    let count = |name: &str| params.integer(name) as usize;
     let requested = params.string("models");
     let kinds_wanted: Option<ModelKind> = match requested {
         "all" => None,
@@ -171,12 +164,12 @@ fn train_first(
             .string("profile")
             .parse()
             .map_err(|e| anyhow!("parameter profile: {e}"))?,
-        epochs: match count("epochs", 0)? {
+        epochs: match count("epochs") {
             0 => None,
             n => Some(n),
         },
-        folds: count("folds", 2)?,
-        max_folds: match count("max_folds", 0)? {
+        folds: count("folds"),
+        max_folds: match count("max_folds") {
             0 => None,
             n => Some(n),
         },
@@ -184,7 +177,7 @@ fn train_first(
             .string("lr_schedule")
             .parse()
             .map_err(|e| anyhow!("parameter lr_schedule: {e}"))?,
-        seed: count("seed", 0)? as u64,
+        seed: count("seed") as u64,
         stop: Some(stop.clone()),
         ..TrainOptions::default()
     };

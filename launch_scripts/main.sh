@@ -36,7 +36,7 @@ echo "==> the trainer node training an FM from the exp1 bag, then answering /tra
 tests/netns-run bash -c '
   export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-7}" RUST_LOG="${RUST_LOG:-warn}"
   RUST_LOG="${RUST_LOG},causal_arm_trainer=info" target/release/causal_arm_trainer --ros-args -p model_dir:=models/node_exp1 \
-    -p "bag:=[bags/quick_exp1]" -p models:=fm -p profile:=quick -p max_folds:=1 -p lr_schedule:=cosine & node=$!
+    -p "bag:=[bags/quick_exp1]" -p models:=fm -p profile:=quick -p max_folds:=1 & node=$!
   target/release/causal-arm service call /trainer/predict_next_state \
     --type causal_arm_msgs/srv/PredictNextState --timeout 120 \
     --json "{\"state\":[0,0.5,0,-1.2,0,0.8,0,0.55,0,0.45],\"action\":[0.05,0,0,0,0,0,0],\"rows\":1}"

@@ -55,7 +55,8 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 1e-3)]
     lr: f64,
     /// Learning-rate schedule: constant (the paper's), cosine (decay to 1 % over the
-    /// epochs) or cosine:FLOOR.
+    /// epochs) or cosine:FLOOR. Cosine wins on paper-size runs, constant on short ones
+    /// (docs/RESULTS.md, "Learning-rate schedule").
     #[arg(long, default_value = "constant")]
     lr_schedule: String,
     /// Measure the held-out MAE every N epochs: a learning curve per network, printed and

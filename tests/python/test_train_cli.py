@@ -27,6 +27,9 @@ def test_train_writes_models_and_metrics_beside_the_paper(run_cli, bags):
     r = train(run_cli, bags, "--bag", bags / "exp1", "--model", "fm", "--out", out)
     assert r.returncode == 0, r.stderr
     assert "fm/theta" in r.stdout and "fm/ef" in r.stdout and "3.400e-3 rad" in r.stdout
+    # stderr is a pipe here, where no bar can draw: plain progress lines stand in for it.
+    assert "training fm fold 1/2: 2 epochs on" in r.stderr, r.stderr
+    assert "fm fold 2/2: epoch 2/2, loss" in r.stderr and "samples/s" in r.stderr, r.stderr
     metrics = json.loads((out / "metrics.json").read_text())
     fm = metrics["models"]["fm"]
     keys = [f["key"] for f in fm["figures"]]

@@ -1,11 +1,12 @@
 //! `causal-arm train`: cross-validate the paper's models on bags and write model files.
 
+use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Experiment, load_bags};
-use causal_arm_trainer::fit::Progress;
+use causal_arm_trainer::fit::{Progress, ProgressLog};
 use causal_arm_trainer::job::train_and_save;
 use causal_arm_trainer::problems::FmTarget;
 use causal_arm_trainer::{Figure, LrSchedule, ModelKind, Profile, TrainOptions};
@@ -76,6 +77,9 @@ pub struct TrainArgs {
     #[arg(long)]
     out: PathBuf,
 }
+
+/// Longest silence of `causal-arm train` when its stderr is not a terminal.
+const PLAIN_EVERY: Duration = Duration::from_secs(10);
 
 fn bar_for(label: &str, epochs: usize, rows: usize) -> ProgressBar {
     let bar = ProgressBar::new((epochs * rows) as u64);
@@ -199,26 +203,36 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
 
     let mut bar: Option<ProgressBar> = None;
     let mut epochs_planned = 0;
-    let mut on_progress = |p: Progress| match p {
-        Progress::Start {
-            label,
-            epochs,
-            rows,
-        } => {
-            if let Some(b) = bar.take() {
-                b.finish_and_clear();
+    // A bar cannot draw into a pipe or a log file: print plain lines there instead.
+    let mut plain_log = (!std::io::stderr().is_terminal()).then(|| ProgressLog::new(PLAIN_EVERY));
+    let mut on_progress = |p: Progress| {
+        if let Some(log) = &mut plain_log {
+            if let Some(line) = log.line(&p) {
+                eprintln!("{line}");
             }
-            epochs_planned = epochs;
-            bar = Some(bar_for(&label, epochs, rows));
+            return;
         }
-        Progress::Rows(n) => {
-            if let Some(b) = &bar {
-                b.inc(n as u64);
+        match p {
+            Progress::Start {
+                label,
+                epochs,
+                rows,
+            } => {
+                if let Some(b) = bar.take() {
+                    b.finish_and_clear();
+                }
+                epochs_planned = epochs;
+                bar = Some(bar_for(&label, epochs, rows));
             }
-        }
-        Progress::Epoch { epoch, loss } => {
-            if let Some(b) = &bar {
-                b.set_message(format!("epoch {epoch}/{epochs_planned} loss {loss:.4}"));
+            Progress::Rows(n) => {
+                if let Some(b) = &bar {
+                    b.inc(n as u64);
+                }
+            }
+            Progress::Epoch { epoch, loss } => {
+                if let Some(b) = &bar {
+                    b.set_message(format!("epoch {epoch}/{epochs_planned} loss {loss:.4}"));
+                }
             }
         }
     };

@@ -44,6 +44,76 @@ pub enum Progress {
     },
 }
 
+/// Turns [`Progress`] events into occasional plain-text lines, for logs and pipes where a
+/// progress bar cannot draw (the trainer node's `/rosout`, `causal-arm train 2>log`).
+/// A line is due at a model's start, at its last epoch, and otherwise at most every
+/// `every`; it carries epoch, loss, samples/s and the model's ETA.
+#[derive(Debug)]
+pub struct ProgressLog {
+    every: std::time::Duration,
+    last: Option<std::time::Instant>,
+    label: String,
+    epochs: usize,
+    rows: usize,
+    started: std::time::Instant,
+    rows_done: u64,
+}
+
+impl ProgressLog {
+    /// A log that stays silent for at most `every` between lines.
+    pub fn new(every: std::time::Duration) -> Self {
+        ProgressLog {
+            every,
+            last: None,
+            label: String::new(),
+            epochs: 0,
+            rows: 0,
+            started: std::time::Instant::now(),
+            rows_done: 0,
+        }
+    }
+
+    /// Feeds one event; returns the line to print when one is due.
+    pub fn line(&mut self, event: &Progress) -> Option<String> {
+        match event {
+            Progress::Start {
+                label,
+                epochs,
+                rows,
+            } => {
+                (self.label, self.epochs, self.rows) = (label.clone(), *epochs, *rows);
+                self.started = std::time::Instant::now();
+                self.rows_done = 0;
+                self.last = Some(self.started);
+                Some(format!("training {label}: {epochs} epochs on {rows} rows"))
+            }
+            Progress::Rows(n) => {
+                self.rows_done += *n as u64;
+                None
+            }
+            Progress::Epoch { epoch, loss } => {
+                let due =
+                    *epoch == self.epochs || self.last.is_none_or(|t| t.elapsed() >= self.every);
+                if !due {
+                    return None;
+                }
+                self.last = Some(std::time::Instant::now());
+                let elapsed = self.started.elapsed().as_secs_f64();
+                let per_s = self.rows_done as f64 / elapsed.max(1e-9);
+                let left = (self.epochs.saturating_sub(*epoch) * self.rows) as f64;
+                Some(format!(
+                    "{}: epoch {epoch}/{}, loss {loss:.5}, {:.0} samples/s, {:.0} s elapsed, ETA {:.0} s",
+                    self.label,
+                    self.epochs,
+                    per_s,
+                    elapsed,
+                    left / per_s.max(1e-9)
+                ))
+            }
+        }
+    }
+}
+
 /// Rows `rows` of a row-major matrix.
 pub fn take_rows(data: &[f32], width: usize, rows: &[usize]) -> Vec<f32> {
     let mut out = Vec::with_capacity(rows.len() * width);
@@ -254,4 +324,57 @@ pub fn mean_baseline_mae(
         .flat_map(|_| mean.iter().map(|&m| m as f32))
         .collect();
     head_mae(&prediction, &take_rows(truth, width, test), heads)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    fn start(epochs: usize) -> Progress {
+        Progress::Start {
+            label: "fm fold 1/5".into(),
+            epochs,
+            rows: 100,
+        }
+    }
+
+    #[test]
+    fn progress_log_speaks_at_start_and_end_and_stays_quiet_between() {
+        let mut log = ProgressLog::new(Duration::from_secs(3600));
+        assert_eq!(
+            log.line(&start(3)).as_deref(),
+            Some("training fm fold 1/5: 3 epochs on 100 rows")
+        );
+        for epoch in 1..=3 {
+            assert!(log.line(&Progress::Rows(100)).is_none());
+            let line = log.line(&Progress::Epoch { epoch, loss: 0.5 });
+            assert_eq!(line.is_some(), epoch == 3, "epoch {epoch}: {line:?}");
+        }
+        let last = log
+            .line(&Progress::Epoch {
+                epoch: 3,
+                loss: 0.5,
+            })
+            .unwrap();
+        assert!(
+            last.starts_with("fm fold 1/5: epoch 3/3, loss 0.50000,"),
+            "{last}"
+        );
+        assert!(last.ends_with("ETA 0 s"), "{last}");
+    }
+
+    #[test]
+    fn progress_log_with_no_interval_reports_every_epoch() {
+        let mut log = ProgressLog::new(Duration::ZERO);
+        log.line(&start(4));
+        log.line(&Progress::Rows(100));
+        let line = log
+            .line(&Progress::Epoch {
+                epoch: 1,
+                loss: 1.0,
+            })
+            .unwrap();
+        assert!(line.contains("epoch 1/4"), "{line}");
+    }
 }

@@ -8,14 +8,14 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{anyhow, bail};
 use causal_arm_dataset::{ActionSource, Cache, load_bags};
 use causal_arm_msgs::srv::{GetModelInfo, PredictAction, PredictNextState, Rollout};
 use causal_arm_node::run::{Served, node_main, serve_until_stopped, stop_flag};
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode};
-use causal_arm_trainer::fit::Progress;
+use causal_arm_trainer::fit::ProgressLog;
 use causal_arm_trainer::job::train_and_save;
 use causal_arm_trainer::serve::ModelSet;
 use causal_arm_trainer::{ModelKind, TrainOptions};
@@ -200,24 +200,10 @@ fn train_first(
         Some(kind) => vec![kind],
         None => ModelKind::all_for(data.experiment),
     };
-    let mut last_log = Instant::now();
-    let mut planned = 0;
-    let mut current = String::new();
-    let saved = train_and_save(&data, &kinds, &options, action, out, &mut |p| match p {
-        Progress::Start {
-            label,
-            epochs,
-            rows,
-        } => {
-            tracing::info!("training {label}: {epochs} epochs on {rows} rows");
-            (planned, current) = (epochs, label);
-        }
-        Progress::Rows(_) => {}
-        Progress::Epoch { epoch, loss } => {
-            if epoch == planned || last_log.elapsed() >= LOG_EVERY {
-                tracing::info!("{current}: epoch {epoch}/{planned}, loss {loss:.5}");
-                last_log = Instant::now();
-            }
+    let mut log = ProgressLog::new(LOG_EVERY);
+    let saved = train_and_save(&data, &kinds, &options, action, out, &mut |p| {
+        if let Some(line) = log.line(&p) {
+            tracing::info!("{line}");
         }
     })?;
     for figure in &saved.figures {

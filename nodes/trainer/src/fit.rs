@@ -1,6 +1,7 @@
 //! Fitting a problem on some rows and judging it on others.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use causal_arm_dataset::wrap_angle;
 use causal_arm_mlp::{Fitter, Head, Mlp, MlpSpec, Regressor, Standardizer, TrainConfig};
@@ -50,25 +51,25 @@ pub enum Progress {
 /// `every`; it carries epoch, loss, samples/s and the model's ETA.
 #[derive(Debug)]
 pub struct ProgressLog {
-    every: std::time::Duration,
-    last: Option<std::time::Instant>,
+    every: Duration,
+    last: Instant,
     label: String,
     epochs: usize,
     rows: usize,
-    started: std::time::Instant,
+    started: Instant,
     rows_done: u64,
 }
 
 impl ProgressLog {
     /// A log that stays silent for at most `every` between lines.
-    pub fn new(every: std::time::Duration) -> Self {
+    pub fn new(every: Duration) -> Self {
         ProgressLog {
             every,
-            last: None,
+            last: Instant::now(),
             label: String::new(),
             epochs: 0,
             rows: 0,
-            started: std::time::Instant::now(),
+            started: Instant::now(),
             rows_done: 0,
         }
     }
@@ -82,9 +83,9 @@ impl ProgressLog {
                 rows,
             } => {
                 (self.label, self.epochs, self.rows) = (label.clone(), *epochs, *rows);
-                self.started = std::time::Instant::now();
+                self.started = Instant::now();
                 self.rows_done = 0;
-                self.last = Some(self.started);
+                self.last = self.started;
                 Some(format!("training {label}: {epochs} epochs on {rows} rows"))
             }
             Progress::Rows(n) => {
@@ -92,12 +93,11 @@ impl ProgressLog {
                 None
             }
             Progress::Epoch { epoch, loss } => {
-                let due =
-                    *epoch == self.epochs || self.last.is_none_or(|t| t.elapsed() >= self.every);
+                let due = *epoch == self.epochs || self.last.elapsed() >= self.every;
                 if !due {
                     return None;
                 }
-                self.last = Some(std::time::Instant::now());
+                self.last = Instant::now();
                 let elapsed = self.started.elapsed().as_secs_f64();
                 let per_s = self.rows_done as f64 / elapsed.max(1e-9);
                 let left = (self.epochs.saturating_sub(*epoch) * self.rows) as f64;
@@ -329,7 +329,6 @@ pub fn mean_baseline_mae(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::time::Duration;
 
     fn start(epochs: usize) -> Progress {
         Progress::Start {

@@ -3,9 +3,11 @@
 mod bag_cmd;
 mod explain_cmd;
 mod generate_cmd;
+mod intervene_cmd;
 mod kinematics_cmd;
 mod launch_cmd;
 mod play_cmd;
+mod progress;
 mod rollout_cmd;
 mod service_cmd;
 mod topic_cmd;
@@ -48,6 +50,8 @@ enum Command {
     Rollout(rollout_cmd::RolloutArgs),
     /// SHAP attributions of a forward model: heat map, PDPs and relevance report.
     Explain(explain_cmd::ExplainArgs),
+    /// Causal ground truth: intervene on every action in states of a bag, record what changes.
+    Intervene(intervene_cmd::InterveneArgs),
     /// Call a service with a JSON request (like `ros2 service call`).
     Service(service_cmd::ServiceArgs),
 }
@@ -73,6 +77,7 @@ fn main() -> std::process::ExitCode {
         Command::Train(args) => train_cmd::run(args),
         Command::Rollout(args) => rollout_cmd::run(args),
         Command::Explain(args) => explain_cmd::run(args),
+        Command::Intervene(args) => intervene_cmd::run(args),
         Command::Service(args) => service_cmd::run(args, &ros_args),
     };
     match result {

@@ -8,7 +8,7 @@ use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_recorder::{BagReader, RawMessage};
-use causal_arm_sim::ros::{ns_from_time, topics};
+use causal_arm_sim::ros::{StepMessages, ns_from_time, topics};
 use nalgebra::{Quaternion, UnitQuaternion};
 
 use crate::{ActionSource, Dataset, DatasetError, Experiment, state_names};
@@ -68,33 +68,69 @@ impl Partial {
 #[derive(Debug, Clone)]
 struct Step {
     stamp: u64,
-    theta: [f64; 7],
-    ef: [f64; 6],
-    object: [f64; 6],
-    colour: [f32; 3],
-    magnet_on: bool,
+    values: StepValues,
     episode: u32,
     step: u32,
     commanded: [f64; 7],
     magnet_command: i8,
 }
 
-impl Step {
-    fn state(&self, experiment: Experiment, out: &mut Vec<f32>) {
+/// The state-bearing values of one simulator step, as the bag's messages carry them.
+#[derive(Debug, Clone)]
+struct StepValues {
+    theta: [f64; 7],
+    ef: [f64; 6],
+    object: [f64; 6],
+    colour: [f32; 3],
+    magnet_on: bool,
+}
+
+impl StepValues {
+    /// s in the experiment's feature order (see [`state_names`]), in f64.
+    fn features(&self, experiment: Experiment, out: &mut Vec<f64>) {
         match experiment {
             Experiment::Exp1 => {
-                out.extend(self.theta.iter().map(|&v| v as f32));
-                out.extend(self.ef[..3].iter().map(|&v| v as f32));
+                out.extend(self.theta);
+                out.extend(&self.ef[..3]);
             }
             Experiment::Exp2 => {
-                out.extend(self.object.iter().map(|&v| v as f32));
-                out.extend(self.colour);
-                out.extend(self.theta.iter().map(|&v| v as f32));
-                out.extend(self.ef.iter().map(|&v| v as f32));
+                out.extend(self.object);
+                out.extend(self.colour.map(f64::from));
+                out.extend(self.theta);
+                out.extend(self.ef);
                 out.push(if self.magnet_on { 1.0 } else { 0.0 });
             }
         }
     }
+
+    fn state(&self, experiment: Experiment, out: &mut Vec<f32>) {
+        let mut wide = Vec::with_capacity(23);
+        self.features(experiment, &mut wide);
+        out.extend(wide.iter().map(|&v| v as f32));
+    }
+}
+
+/// The state vector s(t) of one simulator step, in f64 and in the dataset's feature order
+/// and conventions (Euler angles from the messages' quaternions): what the simulator's
+/// interventions compare, so truth and learning data cannot disagree on a feature.
+pub fn state_features(experiment: Experiment, messages: &StepMessages) -> Vec<f64> {
+    let theta = messages
+        .joint_states
+        .position
+        .as_slice()
+        .try_into()
+        .unwrap_or([f64::NAN; 7]);
+    let c = &messages.object_color.color;
+    let values = StepValues {
+        theta,
+        ef: pose6(&messages.ef_pose),
+        object: pose6(&messages.object_pose),
+        colour: [c.r, c.g, c.b],
+        magnet_on: messages.magnet.on,
+    };
+    let mut out = Vec::with_capacity(23);
+    values.features(experiment, &mut out);
+    out
 }
 
 /// Position and Euler angles (roll, pitch, yaw about fixed x, y, z, as PyBullet reports).
@@ -184,11 +220,13 @@ impl StepReader<'_> {
             let (episode, step, commanded, magnet_command) = p.action.expect("complete");
             self.steps.push(Step {
                 stamp,
-                theta: p.theta.expect("complete"),
-                ef: p.ef.expect("complete"),
-                object: p.object.expect("complete"),
-                colour: p.colour.expect("complete"),
-                magnet_on: p.magnet_on.expect("complete"),
+                values: StepValues {
+                    theta: p.theta.expect("complete"),
+                    ef: p.ef.expect("complete"),
+                    object: p.object.expect("complete"),
+                    colour: p.colour.expect("complete"),
+                    magnet_on: p.magnet_on.expect("complete"),
+                },
                 episode,
                 step,
                 commanded,
@@ -373,12 +411,12 @@ pub fn from_bag(
                 now.episode
             )));
         }
-        now.state(experiment, &mut data.states);
-        next.state(experiment, &mut data.next_states);
+        now.values.state(experiment, &mut data.states);
+        next.values.state(experiment, &mut data.next_states);
         match action_source {
             ActionSource::Realized => data
                 .actions
-                .extend((0..7).map(|j| (next.theta[j] - now.theta[j]) as f32)),
+                .extend((0..7).map(|j| (next.values.theta[j] - now.values.theta[j]) as f32)),
             ActionSource::Commanded => data.actions.extend(now.commanded.iter().map(|&v| v as f32)),
         }
         if experiment == Experiment::Exp2 {

@@ -11,7 +11,7 @@ mod build;
 mod cache;
 mod features;
 
-pub use build::{BagSource, from_bag};
+pub use build::{BagSource, from_bag, state_features};
 pub use cache::{Cache, CacheOutcome, load_bags};
 pub use causal_arm_datagen::Experiment;
 pub use features::{FeatureGroup, action_names, state_groups, state_names, wrap_angle};

@@ -157,6 +157,7 @@ pub struct SimState {
     pub holding: bool,
 }
 
+#[derive(Clone)]
 struct LinkBody {
     /// Index of the link in `ArmModel::link_poses` order.
     chain_index: usize,
@@ -164,6 +165,12 @@ struct LinkBody {
 }
 
 /// The world. One instance per run; episodes are reset in place.
+///
+/// `clone()` is a snapshot: the copy holds the whole state (rapier bodies, colliders,
+/// contacts, islands and broad phase; servo velocities; magnet grip; cube colour; the
+/// placement RNG; step and episode counters) and steps exactly as the original would,
+/// bit for bit. Interventions branch from it: restore, step with an edited command,
+/// compare.
 pub struct Simulator {
     config: SimConfig,
     model: ArmModel,
@@ -185,6 +192,54 @@ pub struct Simulator {
     rng: StdRng,
     step: u64,
     episode: u32,
+}
+
+impl Clone for Simulator {
+    fn clone(&self) -> Self {
+        Self {
+            config: self.config.clone(),
+            model: self.model.clone(),
+            world: clone_world(&self.world),
+            links: self.links.clone(),
+            cube: self.cube,
+            q: self.q,
+            qd: self.qd,
+            effort: self.effort,
+            accel_limit: self.accel_limit,
+            joint_inertia: self.joint_inertia,
+            velocity_limit: self.velocity_limit,
+            lower: self.lower,
+            upper: self.upper,
+            ef: self.ef,
+            magnet_on: self.magnet_on,
+            hold_offset: self.hold_offset,
+            cube_rgb: self.cube_rgb,
+            rng: self.rng.clone(),
+            step: self.step,
+            episode: self.episode,
+        }
+    }
+}
+
+/// Copies every piece of simulation state of `world`. The pipelines hold only workspace
+/// buffers (rapier's own snapshot rule: they are skipped by its serde snapshots too), so
+/// the copy gets fresh ones.
+fn clone_world(world: &PhysicsWorld) -> PhysicsWorld {
+    PhysicsWorld {
+        gravity: world.gravity,
+        integration_parameters: world.integration_parameters,
+        physics_pipeline: rapier3d::prelude::PhysicsPipeline::new(),
+        collision_pipeline: rapier3d::prelude::CollisionPipeline::new(),
+        islands: world.islands.clone(),
+        broad_phase: world.broad_phase.clone(),
+        narrow_phase: world.narrow_phase.clone(),
+        bodies: world.bodies.clone(),
+        colliders: world.colliders.clone(),
+        impulse_joints: world.impulse_joints.clone(),
+        multibody_joints: world.multibody_joints.clone(),
+        soft_bodies: world.soft_bodies.clone(),
+        ccd_solver: world.ccd_solver.clone(),
+    }
 }
 
 fn to_pose(iso: &Isometry3<f64>) -> Pose {

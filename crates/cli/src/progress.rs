@@ -1,0 +1,71 @@
+//! Progress of long counted work: a bar on a terminal, a plain line at most every 10 s in
+//! pipes and logs (where a bar cannot draw).
+
+use std::io::IsTerminal;
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+/// How often a plain line is printed when stderr is not a terminal.
+const PLAIN_EVERY: Duration = Duration::from_secs(10);
+
+/// A counter of `total` units with rate and ETA.
+pub struct Counter {
+    bar: Option<ProgressBar>,
+    what: String,
+    unit: &'static str,
+    total: u64,
+    started: Instant,
+    last_line: Instant,
+}
+
+impl Counter {
+    /// Starts counting `total` `unit`s of `what`.
+    pub fn new(total: u64, what: &str, unit: &'static str) -> Self {
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let bar = ProgressBar::new(total);
+            bar.set_style(
+                ProgressStyle::with_template(&format!(
+                    "{{msg}} [{{bar:30}}] {{pos}}/{{len}} {unit} {{per_sec}} ETA {{eta}}"
+                ))
+                .expect("a valid template")
+                .progress_chars("=> "),
+            );
+            bar.set_message(what.to_owned());
+            bar
+        });
+        Self {
+            bar,
+            what: what.to_owned(),
+            unit,
+            total,
+            started: Instant::now(),
+            last_line: Instant::now(),
+        }
+    }
+
+    /// `done` units are finished.
+    pub fn set(&mut self, done: u64) {
+        match &self.bar {
+            Some(bar) => bar.set_position(done),
+            None if self.last_line.elapsed() >= PLAIN_EVERY || done == self.total => {
+                self.last_line = Instant::now();
+                let secs = self.started.elapsed().as_secs_f64().max(1e-9);
+                let rate = done as f64 / secs;
+                let eta = (self.total.saturating_sub(done)) as f64 / rate.max(1e-9);
+                eprintln!(
+                    "{}: {done}/{} {} ({rate:.0}/s, ETA {eta:.0} s)",
+                    self.what, self.total, self.unit
+                );
+            }
+            None => {}
+        }
+    }
+
+    /// Removes the bar.
+    pub fn finish(self) {
+        if let Some(bar) = self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}

@@ -3,14 +3,19 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::progress::Counter;
 use anyhow::Context;
-use causal_arm_dataset::{ActionSource, Cache, load_bags};
+use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
+use causal_arm_explainer::influence::{
+    InfluenceSettings, Rule, agreement_effects, cai_effects, claims_by_context, holdout_effects,
+};
 use causal_arm_explainer::output::write_all;
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
 use causal_arm_explainer::{BackgroundKind, Explainer, Method, Settings, relevance};
+use causal_arm_scoring::EdgeClaims;
 use causal_arm_trainer::load_model;
+use causal_arm_truth::{score_claims, score_table};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 
 /// Arguments of `causal-arm explain`.
 #[derive(Debug, Args)]
@@ -25,7 +30,9 @@ pub struct ExplainArgs {
     /// training data).
     #[arg(long = "bag", required = true)]
     bags: Vec<PathBuf>,
-    /// Attribution method: deep (Deep SHAP, the paper's) or kernel (Kernel SHAP).
+    /// Method: deep (Deep SHAP, the paper's), kernel (Kernel SHAP), cai (causal influence:
+    /// spread of the prediction when one action is resampled from its marginal) or
+    /// agreement (signed influence reproduced across --model and every --also-model).
     #[arg(long, default_value = "deep")]
     method: String,
     /// Observations to explain (the paper: 200).
@@ -59,6 +66,20 @@ pub struct ExplainArgs {
     /// Skip the per-pair PDP files (pdp/<action>__<state>.png/svg); the grid is always drawn.
     #[arg(long)]
     no_pair_plots: bool,
+    /// Further forward models trained independently of --model (other seed or fold), for
+    /// --method agreement: edges must be reproduced across models.
+    #[arg(long = "also-model")]
+    also_models: Vec<PathBuf>,
+    /// Score the claims against this ground truth (`causal-arm intervene` output) and print
+    /// precision, recall, F1, SHD, AUROC and AP per method, context and block.
+    #[arg(long)]
+    truth: Option<PathBuf>,
+    /// Calibrated rule: an edge needs the lower bound of mean effect / model error above this.
+    #[arg(long, default_value_t = InfluenceSettings::default().kappa)]
+    kappa: f64,
+    /// CAI: draws of each action from its marginal per observation.
+    #[arg(long, default_value_t = InfluenceSettings::default().resamples)]
+    resamples: usize,
     /// Output directory (default: MODEL/explain-<method>).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -99,9 +120,8 @@ fn settings(args: &ExplainArgs) -> anyhow::Result<Settings> {
     Ok(settings)
 }
 
-/// Runs `causal-arm explain`.
-pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
-    let settings = settings(args)?;
+/// The model, its explainer and the data its observations come from.
+fn load(args: &ExplainArgs) -> anyhow::Result<(Explainer, Dataset)> {
     let model = load_model(&args.model, &args.name)?;
     let explainer = Explainer::new(model)?;
     let action_text = args
@@ -117,19 +137,38 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
         action,
         Some(&cache),
     )?;
-    let bar = ProgressBar::new(settings.samples as u64);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{msg} [{bar:30}] {pos}/{len} observations, {per_sec}, ETA {eta}",
-        )
-        .expect("a valid template")
-        .progress_chars("=> "),
+    Ok((explainer, data))
+}
+
+fn influence_settings(args: &ExplainArgs) -> InfluenceSettings {
+    InfluenceSettings {
+        observations: args.samples,
+        resamples: args.resamples,
+        kappa: args.kappa,
+        seed: args.seed,
+        ..InfluenceSettings::default()
+    }
+}
+
+/// Runs `causal-arm explain`.
+pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
+    if let Some(truth) = &args.truth {
+        // A bad truth file is refused before minutes of attribution.
+        causal_arm_truth::load(truth)?;
+    }
+    if ["cai", "agreement", "holdout"].contains(&args.method.as_str()) {
+        return run_influence(args);
+    }
+    let settings = settings(args)?;
+    let (explainer, data) = load(args)?;
+    let mut counter = Counter::new(
+        settings.samples as u64,
+        &format!("{} SHAP", settings.method),
+        "observations",
     );
-    bar.set_message(format!("{} SHAP", settings.method));
-    let explanation = explainer.explain_dataset(&data, &settings, &mut |done, _| {
-        bar.set_position(done as u64)
-    })?;
-    bar.finish_and_clear();
+    let explanation =
+        explainer.explain_dataset(&data, &settings, &mut |done, _| counter.set(done as u64))?;
+    counter.finish();
     let report = relevance(&explanation, args.threshold);
     let out = args
         .out
@@ -137,6 +176,15 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
         .unwrap_or_else(|| args.model.join(format!("explain-{}", settings.method)));
     let written = write_all(&out, &explanation, &report, !args.no_pair_plots)
         .with_context(|| format!("cannot write the explanation into {}", out.display()))?;
+    let mut claims = vec![report.claims()];
+    claims.extend(claims_by_context(
+        &explainer,
+        &data,
+        &explanation.effects(),
+        &influence_settings(args),
+        Rule::ErrorRatio,
+    )?);
+    finish_claims(args, &out, &claims)?;
 
     println!(
         "{} {} SHAP of {}/{}: {} observations × {} background rows in {:.2} s (efficiency error {:.1e})",
@@ -201,5 +249,91 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
             out.join("pdp").display()
         );
     }
+    Ok(())
+}
+
+/// `causal-arm explain --method cai|agreement`: influence of every action on the forward
+/// model(s), with verdicts by the method's rule.
+fn run_influence(args: &ExplainArgs) -> anyhow::Result<()> {
+    let (explainer, data) = load(args)?;
+    let settings = influence_settings(args);
+    let started = std::time::Instant::now();
+    let (effects, claims) = if args.method == "cai" {
+        let effects = cai_effects(&explainer, &data, &settings)?;
+        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::ErrorRatio)?;
+        (effects, claims)
+    } else if args.method == "holdout" {
+        let effects = holdout_effects(&explainer, &data, &settings)?;
+        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::Significance)?;
+        (effects, claims)
+    } else {
+        let mut others = Vec::new();
+        for dir in &args.also_models {
+            others.push(Explainer::new(load_model(dir, &args.name)?)?);
+        }
+        let mut all = vec![&explainer];
+        all.extend(others.iter());
+        let effects = agreement_effects(&all, &data, &settings)?;
+        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::Significance)?;
+        (effects, claims)
+    };
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| args.model.join(format!("explain-{}", args.method)));
+    println!(
+        "{} {} influence of {}/{}: {} observations × {} resamples per action in {:.2} s",
+        explainer.experiment(),
+        args.method,
+        args.model.display(),
+        args.name,
+        effects.rows.len(),
+        settings.resamples,
+        started.elapsed().as_secs_f64()
+    );
+    finish_claims(args, &out, &claims)
+}
+
+/// Writes `claims.json`, prints what the default claims say and, with `--truth`, scores
+/// every claim set against it (`scores.json`).
+fn finish_claims(args: &ExplainArgs, out: &Path, claims: &[EdgeClaims]) -> anyhow::Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let path = out.join("claims.json");
+    std::fs::write(&path, serde_json::to_string_pretty(claims)?)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    eprintln!("wrote {}", path.display());
+    if let Some(calibrated) = claims
+        .iter()
+        .find(|c| c.interval.is_some() && c.context == "all")
+    {
+        for (a, action) in calibrated.action_names.iter().enumerate() {
+            let driven: Vec<&str> = calibrated
+                .state_names
+                .iter()
+                .enumerate()
+                .filter(|&(k, _)| calibrated.drives[a][k])
+                .map(|(_, s)| s.as_str())
+                .collect();
+            println!("{action:<6} drives (calibrated) {}", driven.join(", "));
+        }
+    }
+    let Some(truth_path) = &args.truth else {
+        return Ok(());
+    };
+    let truth = causal_arm_truth::load(truth_path)?;
+    let mut rows = Vec::new();
+    for c in claims {
+        rows.extend(score_claims(&truth, c)?);
+    }
+    println!(
+        "scored against {} ({} states):",
+        truth_path.display(),
+        truth.one_step().states
+    );
+    print!("{}", score_table(&rows));
+    let path = out.join("scores.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&rows)?)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    eprintln!("wrote {}", path.display());
     Ok(())
 }

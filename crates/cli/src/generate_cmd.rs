@@ -39,6 +39,10 @@ pub struct GenerateArgs {
     /// faster, see docs/RESULTS.md).
     #[arg(long, default_value_t = 1.0)]
     velocity_scale: f64,
+    /// Exp 2: move while switching the magnet instead of holding the arm still, so the
+    /// data can show that the magnet does not move the joints (see docs/RESULTS.md).
+    #[arg(long)]
+    pub move_while_switching: bool,
 }
 
 impl GenerateArgs {
@@ -75,6 +79,7 @@ impl GenerateArgs {
             );
         }
         options.sim.velocity_scale = self.velocity_scale;
+        options.exp2.move_while_switching = self.move_while_switching;
         Ok(options)
     }
 }

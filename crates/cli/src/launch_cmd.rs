@@ -54,6 +54,11 @@ fn wait_with_timeout(
 /// Runs `causal-arm launch`.
 pub fn run(args: &GenerateArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     let options = args.options()?;
+    if args.move_while_switching {
+        bail!(
+            "--move-while-switching is not a parameter of the babbler node yet; use causal-arm generate"
+        );
+    }
     causal_arm_datagen::validate(&options)?;
     if !options.overwrite
         && let Some(found) = causal_arm_recorder::existing_bag(&options.out)

@@ -41,7 +41,8 @@ struct Partial {
     ef: Option<[f64; 6]>,
     object: Option<[f64; 6]>,
     colour: Option<[f32; 3]>,
-    magnet_on: Option<bool>,
+    /// (on, holding).
+    magnet: Option<(bool, bool)>,
     action: Option<(u32, u32, [f64; 7], i8)>,
 }
 
@@ -52,7 +53,7 @@ impl Partial {
             self.ef.is_some(),
             self.object.is_some(),
             self.colour.is_some(),
-            self.magnet_on.is_some(),
+            self.magnet.is_some(),
             self.action.is_some(),
         ];
         STEP_TOPICS
@@ -69,6 +70,8 @@ impl Partial {
 struct Step {
     stamp: u64,
     values: StepValues,
+    /// The magnet held the cube.
+    holding: bool,
     episode: u32,
     step: u32,
     commanded: [f64; 7],
@@ -200,7 +203,7 @@ impl StepReader<'_> {
             topics::MAGNET_STATE => {
                 let m: MagnetState = self.reader.decode(raw)?;
                 stamp = ns_from_time(&m.header.stamp);
-                Box::new(move |p| p.magnet_on.replace(m.on).is_some())
+                Box::new(move |p| p.magnet.replace((m.on, m.holding)).is_some())
             }
             _ => {
                 let m: Action = self.reader.decode(raw)?;
@@ -218,6 +221,7 @@ impl StepReader<'_> {
         if partial.missing().is_empty() {
             let p = self.pending.remove(&stamp).expect("just inserted");
             let (episode, step, commanded, magnet_command) = p.action.expect("complete");
+            let (magnet_on, holding) = p.magnet.expect("complete");
             self.steps.push(Step {
                 stamp,
                 values: StepValues {
@@ -225,8 +229,9 @@ impl StepReader<'_> {
                     ef: p.ef.expect("complete"),
                     object: p.object.expect("complete"),
                     colour: p.colour.expect("complete"),
-                    magnet_on: p.magnet_on.expect("complete"),
+                    magnet_on,
                 },
+                holding,
                 episode,
                 step,
                 commanded,
@@ -371,6 +376,7 @@ pub fn from_bag(
         actions: Vec::new(),
         next_states: Vec::with_capacity(all.len() * width),
         episodes: Vec::with_capacity(all.len()),
+        holding: Vec::with_capacity(all.len()),
         steps: Vec::with_capacity(all.len()),
         stamps_ns: Vec::with_capacity(all.len()),
         sources: Vec::new(),
@@ -423,6 +429,7 @@ pub fn from_bag(
             data.actions.push(now.magnet_command as f32);
         }
         data.episodes.push(now.episode);
+        data.holding.push(now.holding as u8);
         data.steps.push(now.step);
         data.stamps_ns.push(now.stamp);
     }

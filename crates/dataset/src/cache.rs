@@ -10,7 +10,7 @@ use crate::build::hash_file;
 use crate::{ActionSource, BagSource, Dataset, DatasetError, Experiment, from_bag};
 
 /// Bumped whenever the data model or the file layout changes, so old files are rebuilt.
-const FORMAT: &str = "causal_arm.dataset.v1";
+const FORMAT: &str = "causal_arm.dataset.v2";
 
 /// Whether a bag's dataset came from the cache.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -162,6 +162,7 @@ fn write(data: &Dataset, path: &Path) -> Result<(), DatasetError> {
                 path,
             )?,
         ),
+        ("holding", view(Dtype::U8, vec![rows], &data.holding, path)?),
         (
             "next_states",
             view(
@@ -253,6 +254,7 @@ fn read(path: &Path) -> Result<Dataset, DatasetError> {
         actions: get(&tensors, "actions", Dtype::F32, path)?,
         next_states: get(&tensors, "next_states", Dtype::F32, path)?,
         episodes: get(&tensors, "episodes", Dtype::U32, path)?,
+        holding: get(&tensors, "holding", Dtype::U8, path)?,
         steps: get(&tensors, "steps", Dtype::U32, path)?,
         stamps_ns: get(&tensors, "stamps_ns", Dtype::U64, path)?,
         sources: Vec::new(),
@@ -262,6 +264,7 @@ fn read(path: &Path) -> Result<Dataset, DatasetError> {
         || data.next_states.len() != rows * data.state_width()
         || data.actions.len() != rows * data.action_width()
         || data.steps.len() != rows
+        || data.holding.len() != rows
         || data.stamps_ns.len() != rows
     {
         return Err(cache_err(path, "tensor shapes disagree"));

@@ -9,11 +9,13 @@
 
 mod build;
 mod cache;
+mod contexts;
 mod features;
 
 pub use build::{BagSource, from_bag, state_features};
 pub use cache::{Cache, CacheOutcome, load_bags};
 pub use causal_arm_datagen::Experiment;
+pub use contexts::{Context, ContextState};
 pub use features::{FeatureGroup, action_names, state_groups, state_names, wrap_angle};
 
 use std::path::PathBuf;
@@ -65,6 +67,10 @@ pub struct Dataset {
     pub next_states: Vec<f32>,
     /// Episode of each row (trajectories never cross episodes).
     pub episodes: Vec<u32>,
+    /// 1 where the magnet held the cube in s(t), else 0 (`/magnet/state` holding): not a
+    /// state feature, but the context in which actions move the cube, so causal claims can
+    /// be scored per context.
+    pub holding: Vec<u8>,
     /// Step within the episode of s(t).
     pub steps: Vec<u32>,
     /// Sim-time stamp of s(t), ns.
@@ -134,6 +140,7 @@ impl Dataset {
         self.next_states.extend(other.next_states);
         self.episodes
             .extend(other.episodes.iter().map(|e| e + offset));
+        self.holding.extend(other.holding);
         self.steps.extend(other.steps);
         self.stamps_ns.extend(other.stamps_ns);
         self.sources.extend(other.sources);

@@ -5,7 +5,9 @@ use std::sync::mpsc;
 use std::time::Instant;
 
 use causal_arm_datagen::{Experiment, sim_seed};
-use causal_arm_dataset::{action_names, state_features, state_groups, state_names, wrap_angle};
+use causal_arm_dataset::{
+    Context, ContextState, action_names, state_features, state_groups, state_names, wrap_angle,
+};
 use causal_arm_sim::ros::step_messages;
 use causal_arm_sim::{Command, SimConfig, SimState, Simulator};
 use rand::SeedableRng;
@@ -13,75 +15,6 @@ use rand::rngs::StdRng;
 use rand::seq::index::sample;
 
 use crate::{EdgeMatrix, FORMAT, Plan, Trace, Truth, TruthError};
-
-/// A subset of states in which effects are reported separately (an action moves the cube
-/// only while it is held; the magnet drops it only on release).
-#[derive(Debug, Clone, Copy)]
-pub struct Context {
-    /// Name used in truth files and score tables.
-    pub name: &'static str,
-    holds: fn(&SimState, &SimConfig) -> bool,
-}
-
-impl Context {
-    /// Name of the context of every state.
-    pub const ALL: &'static str = "all";
-
-    /// The contexts of `experiment`, `all` first. They are judged on s(t), the state the
-    /// action is taken in.
-    pub fn of(experiment: Experiment) -> Vec<Context> {
-        let all = Context {
-            name: Self::ALL,
-            holds: |_, _| true,
-        };
-        match experiment {
-            Experiment::Exp1 => vec![all],
-            Experiment::Exp2 => vec![
-                all,
-                Context {
-                    name: "holding",
-                    holds: |s, _| s.holding,
-                },
-                Context {
-                    name: "not_holding",
-                    holds: |s, _| !s.holding,
-                },
-                Context {
-                    name: "magnet_on",
-                    holds: |s, _| s.magnet_on,
-                },
-                Context {
-                    name: "magnet_off",
-                    holds: |s, _| !s.magnet_on,
-                },
-                Context {
-                    name: "cube_on_table",
-                    holds: cube_on_table,
-                },
-                Context {
-                    name: "cube_elsewhere",
-                    holds: |s, c| !cube_on_table(s, c),
-                },
-            ],
-        }
-    }
-
-    /// Whether `state` belongs to the context.
-    pub fn holds(&self, state: &SimState, config: &SimConfig) -> bool {
-        (self.holds)(state, config)
-    }
-}
-
-/// The cube rests on the table top: not held, its centre half an edge above the top
-/// (within 5 mm) and over the table.
-fn cube_on_table(s: &SimState, c: &SimConfig) -> bool {
-    let p = s.cube_pose.translation.vector;
-    let resting_z = c.table_top_z + c.cube_size / 2.0;
-    !s.holding
-        && (p.z - resting_z).abs() < 5e-3
-        && (p.x - c.table_center[0]).abs() <= c.table_half_extents[0]
-        && (p.y - c.table_center[1]).abs() <= c.table_half_extents[1]
-}
 
 /// What the interventions at one state found.
 struct StateEffects {
@@ -184,7 +117,7 @@ impl Setup<'_> {
             contexts: self
                 .contexts
                 .iter()
-                .map(|c| c.holds(&state, snapshot.config()))
+                .map(|c| c.holds(&ContextState::of_sim(&state), snapshot.config()))
                 .collect(),
             effects,
             replay,

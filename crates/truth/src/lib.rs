@@ -18,14 +18,17 @@
 
 mod engine;
 mod output;
+mod score;
 mod trace;
 
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-pub use engine::{Context, intervene};
+pub use causal_arm_dataset::Context;
+pub use engine::intervene;
 pub use output::{load, write_all};
+pub use score::{ScoreRow, score_claims, score_table};
 pub use trace::{Trace, TraceStep};
 
 /// Why a ground truth could not be made or read.

@@ -4,7 +4,8 @@
 use std::path::PathBuf;
 
 use causal_arm_datagen::{Experiment, GenerateOptions, RunPlan, generate};
-use causal_arm_truth::{Edge, Plan, Truth, intervene, load, write_all};
+use causal_arm_scoring::EdgeClaims;
+use causal_arm_truth::{Edge, Plan, Truth, intervene, load, score_claims, write_all};
 
 fn bag(
     name: &str,
@@ -85,6 +86,22 @@ fn exp1_truth_is_deterministic_and_kinematically_right() {
         assert_eq!(edge(&t, "all", "a6", c), Edge::Absent, "a6 -> {c}");
         assert_eq!(edge(&t, "all", "a3", c), Edge::Present, "a3 -> {c}");
     }
+    // Claims that are the truth score perfectly; claims of the other experiment are refused.
+    let perfect = claims_from(&t, "all");
+    let rows = score_claims(&t, &perfect).unwrap();
+    assert_eq!(rows[0].block, "all");
+    assert_eq!(rows[0].scores.precision, Some(1.0));
+    assert_eq!(rows[0].scores.recall, Some(1.0));
+    assert_eq!(rows[0].scores.auroc, Some(1.0));
+    assert!(rows.iter().any(|r| r.block == "theta") && rows.iter().any(|r| r.block == "ef"));
+    let mut foreign = perfect.clone();
+    foreign.state_names = causal_arm_dataset::state_names(Experiment::Exp2);
+    let e = score_claims(&t, &foreign).unwrap_err().to_string();
+    assert!(e.contains("the truth (exp1) has actions"), "{e}");
+    let e = score_claims(&t, &claims_from(&t, "holding"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no matrix of context \"holding\""), "{e}");
     // The same plan gives the same truth.
     let again = truth(&bag, Experiment::Exp1, 200);
     assert_eq!(again.matrices, t.matrices);
@@ -182,4 +199,25 @@ fn bag_with_other_servo() -> PathBuf {
         },
         |o| o.sim.servo_gain = 20.0,
     )
+}
+
+/// Claims that say exactly what the truth's one-step matrix says (rare edges claimed).
+fn claims_from(t: &Truth, context: &str) -> EdgeClaims {
+    let m = t.one_step();
+    EdgeClaims {
+        method: "oracle".into(),
+        rule: "the truth itself".into(),
+        context: context.into(),
+        horizon: 1,
+        observations: m.states,
+        action_names: t.action_names.clone(),
+        state_names: t.state_names.clone(),
+        score: m.active_fraction.clone(),
+        interval: None,
+        drives: m
+            .active_fraction
+            .iter()
+            .map(|r| r.iter().map(|&f| f > 0.0).collect())
+            .collect(),
+    }
 }

@@ -102,6 +102,13 @@ pub struct Exp2Config {
     pub spurious_off_probability: f64,
     /// Spread of the empty-handed babbling around the current configuration, rad.
     pub babble_sigma: f64,
+    /// Move while switching the magnet: the switch-on step babbles (spread `babble_sigma`)
+    /// and the release step moves a little (spread `babble_sigma` / 3) instead of holding
+    /// the arm still. Holding still makes a magnet command always coincide with a resting
+    /// arm, so no model can learn from the data that the magnet does not move the joints
+    /// (docs/RESULTS.md, "Causal claims against the simulator"). Off by default: the
+    /// paper-profile figures were measured without it.
+    pub move_while_switching: bool,
     /// Spread of the manoeuvres while holding, rad.
     pub manoeuvre_sigma: f64,
     /// Manoeuvre duration range, steps.
@@ -136,6 +143,7 @@ impl Default for Exp2Config {
             switch_on_probability: 0.05,
             spurious_off_probability: 0.0,
             babble_sigma: 0.15,
+            move_while_switching: false,
             manoeuvre_sigma: 0.1,
             manoeuvre_steps: (20, 80),
             min_babble_steps: 10,
@@ -292,7 +300,11 @@ impl Exp2Babbler {
                 if switch_on {
                     self.phase = Phase::Approach { steps: 0 };
                     return Command {
-                        joint_targets: q,
+                        joint_targets: if self.config.move_while_switching {
+                            targets
+                        } else {
+                            q
+                        },
                         magnet: 1,
                     };
                 }
@@ -427,8 +439,13 @@ impl Exp2Babbler {
         self.phase = Phase::Babble {
             min_remaining: self.config.min_babble_steps,
         };
+        let joint_targets = if self.config.move_while_switching {
+            self.random_near(q, self.config.babble_sigma / 3.0, false)
+        } else {
+            *q
+        };
         Command {
-            joint_targets: *q,
+            joint_targets,
             magnet: -1,
         }
     }

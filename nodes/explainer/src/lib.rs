@@ -9,6 +9,7 @@
 
 #![warn(missing_docs)]
 
+pub mod influence;
 pub mod output;
 pub mod report;
 pub mod serve;
@@ -518,6 +519,27 @@ impl Explanation {
         (self.n_state..self.input_names.len())
             .map(|i| all[i * n_out..(i + 1) * n_out].to_vec())
             .collect()
+    }
+
+    /// |SHAP| of every action on every output per observation, as effects the calibrated
+    /// decision rule judges ([`influence::calibrated_claims`]).
+    pub fn effects(&self) -> influence::Effects {
+        let n_action = self.input_names.len() - self.n_state;
+        let mut values = Vec::with_capacity(self.attributions.n_obs * n_action * self.n_state);
+        for o in 0..self.attributions.n_obs {
+            for a in 0..n_action {
+                for k in 0..self.n_state {
+                    values.push(self.attributions.get(o, self.n_state + a, k).abs());
+                }
+            }
+        }
+        influence::Effects {
+            method: self.settings.method.to_string(),
+            rows: self.observation_rows.clone(),
+            n_action,
+            n_state: self.n_state,
+            values,
+        }
     }
 
     /// (action value, its contribution to `output`) per observation: one PDP panel.

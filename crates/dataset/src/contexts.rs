@@ -1,0 +1,98 @@
+//! Contexts: subsets of states in which an action's effects differ (an arm joint moves the
+//! cube only while it is held; the magnet drops it only on release). One definition serves
+//! the simulator's ground truth and the explainer's claims, so both split states alike.
+
+use causal_arm_sim::{SimConfig, SimState};
+
+use crate::{Dataset, Experiment, state_names};
+
+/// What a context is judged on: the state s(t) the action is taken in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContextState {
+    /// The magnet holds the cube.
+    pub holding: bool,
+    /// The magnet is switched on.
+    pub magnet_on: bool,
+    /// Cube centre, m.
+    pub cube: [f64; 3],
+}
+
+impl ContextState {
+    /// From a simulator state.
+    pub fn of_sim(state: &SimState) -> Self {
+        let p = state.cube_pose.translation.vector;
+        Self {
+            holding: state.holding,
+            magnet_on: state.magnet_on,
+            cube: [p.x, p.y, p.z],
+        }
+    }
+
+    /// From row `row` of an experiment-2 dataset (s(t) and its holding flag).
+    pub fn of_row(data: &Dataset, row: usize) -> Self {
+        let s = data.state(row);
+        let names = state_names(data.experiment);
+        let at = |n: &str| {
+            names
+                .iter()
+                .position(|m| m == n)
+                .map(|i| s[i] as f64)
+                .unwrap_or(f64::NAN)
+        };
+        Self {
+            holding: data.holding.get(row).is_some_and(|&h| h != 0),
+            magnet_on: at("mgt") > 0.5,
+            cube: [at("o_x"), at("o_y"), at("o_z")],
+        }
+    }
+}
+
+/// A named subset of states.
+#[derive(Debug, Clone, Copy)]
+pub struct Context {
+    /// Name used in truth files, reports and score tables.
+    pub name: &'static str,
+    holds: fn(&ContextState, &SimConfig) -> bool,
+}
+
+impl Context {
+    /// Name of the context of every state.
+    pub const ALL: &'static str = "all";
+
+    /// The contexts of `experiment`, `all` first.
+    pub fn of(experiment: Experiment) -> Vec<Context> {
+        let all = Context {
+            name: Self::ALL,
+            holds: |_, _| true,
+        };
+        let context = |name, holds| Context { name, holds };
+        match experiment {
+            Experiment::Exp1 => vec![all],
+            Experiment::Exp2 => vec![
+                all,
+                context("holding", |s, _| s.holding),
+                context("not_holding", |s, _| !s.holding),
+                context("magnet_on", |s, _| s.magnet_on),
+                context("magnet_off", |s, _| !s.magnet_on),
+                context("cube_on_table", cube_on_table),
+                context("cube_elsewhere", |s, c| !cube_on_table(s, c)),
+            ],
+        }
+    }
+
+    /// Whether a state belongs to the context (`config`: the table's geometry).
+    pub fn holds(&self, state: &ContextState, config: &SimConfig) -> bool {
+        (self.holds)(state, config)
+    }
+}
+
+/// The cube rests on the table top: not held, its centre half an edge above the top
+/// (within 5 mm) and over the table.
+fn cube_on_table(s: &ContextState, c: &SimConfig) -> bool {
+    let [x, y, z] = s.cube;
+    let resting_z = c.table_top_z + c.cube_size / 2.0;
+    !s.holding
+        && (z - resting_z).abs() < 5e-3
+        && (x - c.table_center[0]).abs() <= c.table_half_extents[0]
+        && (y - c.table_center[1]).abs() <= c.table_half_extents[1]
+}

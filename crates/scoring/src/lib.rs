@@ -1,0 +1,290 @@
+//! Scores of causal claims against a ground truth.
+//!
+//! A claim set says, for every (action, state feature) pair, whether the action drives the
+//! feature (a verdict) and how strongly (a raw score, higher = more likely an edge). The
+//! truth labels each pair present, absent or not scored (an edge too rare to demand). The
+//! verdicts give precision, recall, F1 and the structural Hamming distance (on a bipartite
+//! action → state graph: false edges plus missed edges); the raw scores give the
+//! threshold-free AUROC and average precision. Pure functions, no I/O.
+
+#![warn(missing_docs)]
+
+use serde::{Deserialize, Serialize};
+
+/// Counts and rates of one comparison. Rates are `None` where undefined (no claims for
+/// precision, no true edges for recall, one class missing for AUROC and AP).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scores {
+    /// Pairs scored (present or absent in the truth).
+    pub scored: usize,
+    /// Pairs left out (rare in the truth).
+    pub not_scored: usize,
+    /// Claimed and present.
+    pub true_positives: usize,
+    /// Claimed and absent.
+    pub false_positives: usize,
+    /// Present but not claimed.
+    pub false_negatives: usize,
+    /// TP / (TP + FP).
+    pub precision: Option<f64>,
+    /// TP / (TP + FN).
+    pub recall: Option<f64>,
+    /// Harmonic mean of precision and recall.
+    pub f1: Option<f64>,
+    /// Structural Hamming distance: FP + FN.
+    pub shd: usize,
+    /// Probability that a random present pair scores above a random absent one (ties ½).
+    pub auroc: Option<f64>,
+    /// Area under the precision–recall curve as a step function (sklearn's definition).
+    pub average_precision: Option<f64>,
+}
+
+/// Scores `verdicts` and raw `scores` against `truth` (`Some(true)` present, `Some(false)`
+/// absent, `None` not scored), over the pairs `include` selects. All slices are aligned.
+pub fn score(
+    truth: &[Option<bool>],
+    verdicts: &[bool],
+    scores: &[f64],
+    include: impl Fn(usize) -> bool,
+) -> Scores {
+    let (mut tp, mut fp, mut fn_, mut not_scored) = (0, 0, 0, 0);
+    let mut ranked: Vec<(f64, bool)> = Vec::new();
+    for i in (0..truth.len()).filter(|&i| include(i)) {
+        let Some(present) = truth[i] else {
+            not_scored += 1;
+            continue;
+        };
+        ranked.push((scores[i], present));
+        match (verdicts[i], present) {
+            (true, true) => tp += 1,
+            (true, false) => fp += 1,
+            (false, true) => fn_ += 1,
+            (false, false) => {}
+        }
+    }
+    let ratio = |a: usize, b: usize| (b > 0).then(|| a as f64 / b as f64);
+    let precision = ratio(tp, tp + fp);
+    let recall = ratio(tp, tp + fn_);
+    let f1 = match (precision, recall) {
+        (Some(p), Some(r)) if p + r > 0.0 => Some(2.0 * p * r / (p + r)),
+        (Some(_), Some(_)) => Some(0.0),
+        _ => None,
+    };
+    Scores {
+        scored: ranked.len(),
+        not_scored,
+        true_positives: tp,
+        false_positives: fp,
+        false_negatives: fn_,
+        precision,
+        recall,
+        f1,
+        shd: fp + fn_,
+        auroc: auroc(&ranked),
+        average_precision: average_precision(&ranked),
+    }
+}
+
+/// AUROC of `(score, positive)` pairs by the rank-sum (Mann–Whitney) statistic, ties at
+/// half weight. `None` without both classes.
+pub fn auroc(ranked: &[(f64, bool)]) -> Option<f64> {
+    let pos = ranked.iter().filter(|r| r.1).count();
+    let neg = ranked.len() - pos;
+    if pos == 0 || neg == 0 {
+        return None;
+    }
+    let mut sorted = ranked.to_vec();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Sum of the positives' (tie-averaged) ranks, ranks from 1.
+    let mut rank_sum = 0.0;
+    let mut i = 0;
+    while i < sorted.len() {
+        let j = (i..sorted.len())
+            .find(|&j| sorted[j].0 != sorted[i].0)
+            .unwrap_or(sorted.len());
+        let average_rank = (i + 1 + j) as f64 / 2.0;
+        rank_sum += average_rank * sorted[i..j].iter().filter(|r| r.1).count() as f64;
+        i = j;
+    }
+    let u = rank_sum - (pos * (pos + 1)) as f64 / 2.0;
+    Some(u / (pos * neg) as f64)
+}
+
+/// Average precision: Σ over distinct score thresholds, high to low, of
+/// (recall gained) × (precision there). `None` without a positive.
+pub fn average_precision(ranked: &[(f64, bool)]) -> Option<f64> {
+    let pos = ranked.iter().filter(|r| r.1).count();
+    if pos == 0 {
+        return None;
+    }
+    let mut sorted = ranked.to_vec();
+    sorted.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let (mut tp, mut seen, mut ap, mut last_recall) = (0usize, 0usize, 0.0, 0.0);
+    let mut i = 0;
+    while i < sorted.len() {
+        let j = (i..sorted.len())
+            .find(|&j| sorted[j].0 != sorted[i].0)
+            .unwrap_or(sorted.len());
+        tp += sorted[i..j].iter().filter(|r| r.1).count();
+        seen += j - i;
+        let recall = tp as f64 / pos as f64;
+        ap += (recall - last_recall) * tp as f64 / seen as f64;
+        last_recall = recall;
+        i = j;
+    }
+    Some(ap)
+}
+
+/// What a method claims about every (action, state feature) pair in one context, at one
+/// horizon (s(t+k)). `score`, `drives` and `interval` are `[action][state]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EdgeClaims {
+    /// Method that produced the raw scores (`cai`, `deep`, `kernel`).
+    pub method: String,
+    /// Decision rule that turned them into verdicts, in words.
+    pub rule: String,
+    /// Context of the observations (`all`, `holding`, …).
+    pub context: String,
+    /// k of s(t+k).
+    pub horizon: usize,
+    /// Observations the scores average over.
+    pub observations: usize,
+    /// Action names (rows).
+    pub action_names: Vec<String>,
+    /// State feature names (columns).
+    pub state_names: Vec<String>,
+    /// Raw score, higher = stronger evidence of an edge (threshold-free metrics use it).
+    pub score: Vec<Vec<f64>>,
+    /// 95 % bootstrap interval of the score over observations, where the method has one.
+    pub interval: Option<Vec<Vec<[f64; 2]>>>,
+    /// The verdict: the action drives the feature.
+    pub drives: Vec<Vec<bool>>,
+}
+
+impl EdgeClaims {
+    /// Whether `action` drives `state` (false for unknown names).
+    pub fn drives(&self, action: &str, state: &str) -> bool {
+        let a = self.action_names.iter().position(|n| n == action);
+        let s = self.state_names.iter().position(|n| n == state);
+        matches!((a, s), (Some(a), Some(s)) if self.drives[a][s])
+    }
+
+    /// Checks that every matrix is `[action][state]`.
+    pub fn check_shape(&self) -> Result<(), String> {
+        let (na, ns) = (self.action_names.len(), self.state_names.len());
+        fn bad<T>(m: &[Vec<T>], na: usize, ns: usize) -> bool {
+            m.len() != na || m.iter().any(|r| r.len() != ns)
+        }
+        if bad(&self.score, na, ns)
+            || bad(&self.drives, na, ns)
+            || self.interval.as_ref().is_some_and(|i| bad(i, na, ns))
+        {
+            return Err(format!(
+                "claims of {} ({}) are not {na} actions × {ns} states",
+                self.method, self.context
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The state-feature groups edges are scored by (the action → θ, → ef, → object,
+/// → magnet), from a feature's name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Block {
+    /// Joint positions `theta*`.
+    Theta,
+    /// Effector pose `ef_*`.
+    Ef,
+    /// Cube pose and colour `o_*`.
+    Object,
+    /// Magnet state `mgt`.
+    Magnet,
+}
+
+impl Block {
+    /// All blocks, in report order.
+    pub const ALL: [Block; 4] = [Block::Theta, Block::Ef, Block::Object, Block::Magnet];
+
+    /// The block of a state feature, by the project's naming (DESIGN "Data model").
+    pub fn of(state: &str) -> Option<Block> {
+        if state.starts_with("theta") {
+            Some(Block::Theta)
+        } else if state.starts_with("ef_") {
+            Some(Block::Ef)
+        } else if state.starts_with("o_") {
+            Some(Block::Object)
+        } else if state == "mgt" {
+            Some(Block::Magnet)
+        } else {
+            None
+        }
+    }
+
+    /// Name in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Block::Theta => "theta",
+            Block::Ef => "ef",
+            Block::Object => "object",
+            Block::Magnet => "magnet",
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_and_rates_follow_their_definitions() {
+        let truth = [Some(true), Some(true), Some(false), Some(false), None];
+        let verdicts = [true, false, true, false, true];
+        let scores = [0.9, 0.2, 0.5, 0.1, 0.7];
+        let s = score(&truth, &verdicts, &scores, |_| true);
+        assert_eq!(
+            (s.true_positives, s.false_positives, s.false_negatives),
+            (1, 1, 1)
+        );
+        assert_eq!((s.scored, s.not_scored, s.shd), (4, 1, 2));
+        assert_eq!(
+            (s.precision, s.recall, s.f1),
+            (Some(0.5), Some(0.5), Some(0.5))
+        );
+        // Positives 0.9, 0.2 vs negatives 0.5, 0.1: pairs won 0.9>0.5, 0.9>0.1, 0.2>0.1.
+        assert_eq!(s.auroc, Some(0.75));
+        // Ranking 0.9(+) 0.5(−) 0.2(+) 0.1(−): AP = ½·1 + ½·⅔.
+        assert!((s.average_precision.unwrap() - (0.5 + 1.0 / 3.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn perfect_ties_and_empty_cases() {
+        let ranked = [(1.0, true), (1.0, false)];
+        assert_eq!(auroc(&ranked), Some(0.5));
+        assert_eq!(average_precision(&ranked), Some(0.5));
+        assert_eq!(auroc(&[(1.0, true)]), None);
+        assert_eq!(average_precision(&[(1.0, false)]), None);
+        let s = score(&[Some(false)], &[false], &[0.0], |_| true);
+        assert_eq!((s.precision, s.recall, s.f1), (None, None, None));
+        let perfect = score(
+            &[Some(true), Some(false)],
+            &[true, false],
+            &[2.0, 1.0],
+            |_| true,
+        );
+        assert_eq!(
+            (perfect.auroc, perfect.average_precision, perfect.f1),
+            (Some(1.0), Some(1.0), Some(1.0))
+        );
+    }
+
+    #[test]
+    fn blocks_follow_feature_names() {
+        assert_eq!(Block::of("theta3"), Some(Block::Theta));
+        assert_eq!(Block::of("ef_rz"), Some(Block::Ef));
+        assert_eq!(Block::of("o_B"), Some(Block::Object));
+        assert_eq!(Block::of("mgt"), Some(Block::Magnet));
+        assert_eq!(Block::of("speed"), None);
+    }
+}

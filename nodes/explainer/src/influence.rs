@@ -1,0 +1,697 @@
+//! Causal influence of each action on each next-state feature under the forward model, in
+//! the way of CAI (Seitzer et al. 2021, "Causal Influence Detection"): in a state s with
+//! action a, resample a_j from its marginal and measure the spread of the predicted
+//! s_k(t+1). And the decision rule that turns any per-observation effect (CAI spread,
+//! |SHAP|) into calibrated verdicts: an edge is claimed when the 95 % bootstrap lower
+//! bound of its mean effect exceeds κ × the model's own error on that feature — an effect
+//! smaller than what the model gets wrong cannot be told from the model's mistakes.
+
+use causal_arm_dataset::{Context, ContextState, Dataset, state_groups, wrap_angle};
+use causal_arm_scoring::EdgeClaims;
+use causal_arm_sim::SimConfig;
+use causal_arm_trainer::LoadedModel;
+use rand::rngs::StdRng;
+use rand::seq::index::sample;
+use rand::{Rng, SeedableRng};
+
+use crate::{ExplainError, Explainer, Result, forward_inputs};
+
+/// How influence is measured and judged.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct InfluenceSettings {
+    /// Observations (states with their actions) the influence is averaged over.
+    pub observations: usize,
+    /// Values of a_j drawn from its marginal per observation.
+    pub resamples: usize,
+    /// Rows the model's per-feature error (the floor) is measured on.
+    pub error_rows: usize,
+    /// Bootstrap resamples of the observations for the interval.
+    pub bootstrap: usize,
+    /// An edge needs its effect's lower bound above κ × the feature's error.
+    pub kappa: f64,
+    /// Seed of every draw.
+    pub seed: u64,
+}
+
+impl Default for InfluenceSettings {
+    fn default() -> Self {
+        Self {
+            observations: 500,
+            resamples: 64,
+            error_rows: 20_000,
+            bootstrap: 1000,
+            kappa: 2.0,
+            seed: 0,
+        }
+    }
+}
+
+/// Per-observation effects of every action on every output, `[obs][action][state]`, and
+/// what is needed to judge them.
+#[derive(Debug, Clone)]
+pub struct Effects {
+    /// Method name (`cai`, `deep`, `kernel`).
+    pub method: String,
+    /// Dataset rows of the observations.
+    pub rows: Vec<usize>,
+    /// Number of actions.
+    pub n_action: usize,
+    /// Number of state features.
+    pub n_state: usize,
+    /// `[obs][action][state]`, raw units of the state feature.
+    pub values: Vec<f64>,
+}
+
+impl Effects {
+    fn at(&self, obs: usize, action: usize, state: usize) -> f64 {
+        self.values[(obs * self.n_action + action) * self.n_state + state]
+    }
+}
+
+/// CAI influence: for each of `settings.observations` rows drawn from `data`, the standard
+/// deviation of the forward model's predicted s_k(t+1) over `resamples` draws of a_j from
+/// its marginal (the other inputs kept).
+pub fn cai_effects(
+    explainer: &Explainer,
+    data: &Dataset,
+    settings: &InfluenceSettings,
+) -> Result<Effects> {
+    check(settings, data.rows())?;
+    let mut rng = StdRng::seed_from_u64(settings.seed);
+    let rows = sample(&mut rng, data.rows(), settings.observations).into_vec();
+    let (ns, na) = (data.state_width(), data.action_width());
+    let width = ns + na;
+    let base = forward_inputs(data, &rows);
+    let k = settings.resamples;
+    let mut batch = Vec::with_capacity(rows.len() * na * k * width);
+    for obs in 0..rows.len() {
+        let x = &base[obs * width..(obs + 1) * width];
+        for j in 0..na {
+            for _ in 0..k {
+                let donor = rng.random_range(0..data.rows());
+                let mut row = x.to_vec();
+                row[ns + j] = data.action(donor)[j];
+                batch.extend_from_slice(&row);
+            }
+        }
+    }
+    // The network's own output: for a delta model s(t+1) − s(t), whose spread over a_j is
+    // that of s(t+1) (s(t) is fixed), without f32 rounding of the offset or angle wrapping.
+    let regressor = &explainer.model().regressor;
+    let mut predicted = Vec::with_capacity(rows.len() * na * k * ns);
+    for chunk in batch.chunks(65_536 * width) {
+        predicted.extend(
+            regressor
+                .predict(chunk)
+                .map_err(|e| ExplainError::Options(e.to_string()))?,
+        );
+    }
+    let mut values = vec![0.0; rows.len() * na * ns];
+    for (group, out) in predicted
+        .chunks_exact(k * ns)
+        .zip(values.chunks_exact_mut(ns))
+    {
+        for (s, v) in out.iter_mut().enumerate() {
+            let mean = (0..k).map(|r| group[r * ns + s] as f64).sum::<f64>() / k as f64;
+            let var = (0..k)
+                .map(|r| (group[r * ns + s] as f64 - mean).powi(2))
+                .sum::<f64>()
+                / k as f64;
+            *v = var.sqrt();
+        }
+    }
+    Ok(Effects {
+        method: "cai".into(),
+        rows,
+        n_action: na,
+        n_state: ns,
+        values,
+    })
+}
+
+fn check(settings: &InfluenceSettings, rows: usize) -> Result<()> {
+    let bad = |m: String| Err(ExplainError::Options(m));
+    if settings.observations == 0 || settings.resamples < 2 || settings.bootstrap == 0 {
+        return bad(format!(
+            "influence needs at least 1 observation, 2 resamples and 1 bootstrap draw, got {}, {}, {}",
+            settings.observations, settings.resamples, settings.bootstrap
+        ));
+    }
+    if settings.observations > rows {
+        return bad(format!(
+            "the data has {rows} transitions; {} observations need more",
+            settings.observations
+        ));
+    }
+    if !(settings.kappa.is_finite() && settings.kappa >= 0.0) {
+        return bad(format!(
+            "kappa must be a non-negative number, got {}",
+            settings.kappa
+        ));
+    }
+    Ok(())
+}
+
+/// Mean absolute error of the forward model on every state feature (angles wrapped), over
+/// `rows` of `data`: the floor below which an effect is indistinguishable from error. It is
+/// never below the f32 resolution of the feature (2⁻²³ × its mean magnitude): a feature
+/// predicted exactly still carries rounding, and a ratio to 0 would mean nothing. A feature
+/// that never changes within a transition gets an infinite floor: the data shows no action
+/// changing it, whatever a network does with it.
+pub fn feature_error(model: &LoadedModel, data: &Dataset, rows: &[usize]) -> Result<Vec<f64>> {
+    let ns = data.state_width();
+    let mut angular = vec![false; ns];
+    for g in state_groups(data.experiment) {
+        angular[g.start..g.start + g.len].fill(g.angular);
+    }
+    let predicted = model
+        .predict(&forward_inputs(data, rows))
+        .map_err(|e| ExplainError::Options(e.to_string()))?;
+    let mut error = vec![0.0; ns];
+    for (i, &r) in rows.iter().enumerate() {
+        for (k, e) in error.iter_mut().enumerate() {
+            let d = predicted[i * ns + k] as f64 - data.next_state(r)[k] as f64;
+            *e += if angular[k] { wrap_angle(d) } else { d }.abs();
+        }
+    }
+    let n = rows.len().max(1) as f64;
+    let scale = crate::change_scale(data);
+    let magnitude: Vec<f64> = (0..ns)
+        .map(|k| {
+            rows.iter()
+                .map(|&r| (data.next_state(r)[k] as f64).abs())
+                .sum::<f64>()
+                / n
+        })
+        .collect();
+    Ok((0..ns)
+        .map(|k| {
+            if scale[k] == 0.0 {
+                f64::INFINITY
+            } else {
+                (error[k] / n).max(magnitude[k] * f32::EPSILON as f64)
+            }
+        })
+        .collect())
+}
+
+/// Rows of `data` in `context` among `rows`.
+pub fn rows_in_context(data: &Dataset, rows: &[usize], context: &Context) -> Vec<usize> {
+    let config = SimConfig::default();
+    rows.iter()
+        .copied()
+        .filter(|&r| context.holds(&ContextState::of_row(data, r), &config))
+        .collect()
+}
+
+/// Calibrated claims from per-observation `effects` over the observations `members`
+/// (indices into `effects.rows`): score = mean effect / error, interval = 95 % bootstrap
+/// interval of that ratio, verdict = lower bound > κ.
+#[allow(clippy::too_many_arguments)]
+pub fn calibrated_claims(
+    effects: &Effects,
+    members: &[usize],
+    error: &[f64],
+    settings: &InfluenceSettings,
+    context: &str,
+    action_names: &[String],
+    state_names: &[String],
+) -> EdgeClaims {
+    let (na, ns) = (effects.n_action, effects.n_state);
+    let n = members.len().max(1);
+    let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xB007);
+    let draws: Vec<Vec<usize>> = (0..settings.bootstrap)
+        .map(|_| (0..n).map(|_| members[rng.random_range(0..n)]).collect())
+        .collect();
+    let ratio = |sum: f64, k: usize| {
+        let mean = sum / n as f64;
+        if mean == 0.0 { 0.0 } else { mean / error[k] }
+    };
+    let mut score = vec![vec![0.0; ns]; na];
+    let mut interval = vec![vec![[0.0; 2]; ns]; na];
+    let mut drives = vec![vec![false; ns]; na];
+    for a in 0..na {
+        for k in 0..ns {
+            if members.is_empty() {
+                continue;
+            }
+            score[a][k] = ratio(members.iter().map(|&o| effects.at(o, a, k)).sum(), k);
+            let mut boot: Vec<f64> = draws
+                .iter()
+                .map(|d| ratio(d.iter().map(|&o| effects.at(o, a, k)).sum(), k))
+                .collect();
+            boot.sort_by(f64::total_cmp);
+            let q =
+                |p: f64| boot[((p * (boot.len() - 1) as f64).round() as usize).min(boot.len() - 1)];
+            interval[a][k] = [q(0.025), q(0.975)];
+            drives[a][k] = interval[a][k][0] > settings.kappa;
+        }
+    }
+    EdgeClaims {
+        method: effects.method.clone(),
+        rule: format!(
+            "drives when the 95 % bootstrap lower bound of mean effect / the model's MAE on the feature exceeds {}",
+            settings.kappa
+        ),
+        context: context.to_owned(),
+        horizon: 1,
+        observations: members.len(),
+        action_names: action_names.to_vec(),
+        state_names: state_names.to_vec(),
+        score,
+        interval: Some(interval),
+        drives,
+    }
+}
+
+/// How per-observation effects become verdicts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rule {
+    /// Magnitudes (CAI spread, |SHAP|) against κ × the model's error ([`calibrated_claims`]).
+    ErrorRatio,
+    /// Signed agreement of independent models, tested against 0 ([`significance_claims`]).
+    Significance,
+}
+
+/// Claims of `effects` by `rule` in every context of the data's experiment (`all` first),
+/// each context judged on its own observations (and, for [`Rule::ErrorRatio`], against the
+/// model's error on that context's rows).
+pub fn claims_by_context(
+    explainer: &Explainer,
+    data: &Dataset,
+    effects: &Effects,
+    settings: &InfluenceSettings,
+    rule: Rule,
+) -> Result<Vec<EdgeClaims>> {
+    let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
+    let error_pool = sample(&mut rng, data.rows(), settings.error_rows.min(data.rows())).into_vec();
+    let scale = crate::change_scale(data);
+    let mut out = Vec::new();
+    for context in Context::of(data.experiment) {
+        let members: Vec<usize> = (0..effects.rows.len())
+            .filter(|&o| {
+                context.holds(
+                    &ContextState::of_row(data, effects.rows[o]),
+                    &SimConfig::default(),
+                )
+            })
+            .collect();
+        let (actions, states) = (explainer.action_names(), explainer.state_names());
+        out.push(match rule {
+            Rule::ErrorRatio => {
+                let error_rows = rows_in_context(data, &error_pool, &context);
+                let error = feature_error(explainer.model(), data, &error_rows)?;
+                calibrated_claims(
+                    effects,
+                    &members,
+                    &error,
+                    settings,
+                    context.name,
+                    actions,
+                    states,
+                )
+            }
+            Rule::Significance => {
+                significance_claims(effects, &members, &scale, context.name, actions, states)
+            }
+        });
+    }
+    Ok(out)
+}
+
+/// Two-sided normal quantile for the Bonferroni-corrected level `alpha / tests` (one-sided
+/// upper tail), by bisection on the complementary error function.
+fn z_critical(alpha: f64, tests: usize) -> f64 {
+    let tail = alpha / tests.max(1) as f64;
+    let upper_tail = |z: f64| 0.5 * erfc(z / std::f64::consts::SQRT_2);
+    let (mut lo, mut hi) = (0.0, 40.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if upper_tail(mid) > tail {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// erfc(x) for x ≥ 0 (Numerical Recipes' Chebyshev fit, relative error < 1.2e-7).
+fn erfc(x: f64) -> f64 {
+    let t = 1.0 / (1.0 + 0.5 * x.abs());
+    let y = t
+        * (-x * x - 1.265_512_23
+            + t * (1.000_023_68
+                + t * (0.374_091_96
+                    + t * (0.096_784_18
+                        + t * (-0.186_288_06
+                            + t * (0.278_868_07
+                                + t * (-1.135_203_98
+                                    + t * (1.488_515_87
+                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
+            .exp();
+    if x >= 0.0 { y } else { 2.0 - y }
+}
+
+/// Reproducible influence across independently trained forward models (seeds or folds):
+/// per observation and action, K pairs of values (v, v′) of a_j drawn from its marginal;
+/// each model's signed change d = f(a_j = v) − f(a_j = v′) of every output; the effect is
+/// the product of two models' changes, averaged over the pairs (and over model pairs). Its
+/// mean over observations estimates Var of the true effect plus the covariance of the
+/// models' errors — which is 0 where the models' errors are independent, so an effect no
+/// model reproduces averages out however large each model's own error is.
+pub fn agreement_effects(
+    explainers: &[&Explainer],
+    data: &Dataset,
+    settings: &InfluenceSettings,
+) -> Result<Effects> {
+    if explainers.len() < 2 {
+        return Err(ExplainError::Options(format!(
+            "agreement needs at least 2 independently trained models, got {}",
+            explainers.len()
+        )));
+    }
+    check(settings, data.rows())?;
+    let mut rng = StdRng::seed_from_u64(settings.seed);
+    let rows = sample(&mut rng, data.rows(), settings.observations).into_vec();
+    let (ns, na) = (data.state_width(), data.action_width());
+    let width = ns + na;
+    let base = forward_inputs(data, &rows);
+    let k = settings.resamples;
+    let mut batch = Vec::with_capacity(rows.len() * na * k * 2 * width);
+    for obs in 0..rows.len() {
+        let x = &base[obs * width..(obs + 1) * width];
+        for j in 0..na {
+            for _ in 0..2 * k {
+                let mut row = x.to_vec();
+                row[ns + j] = data.action(rng.random_range(0..data.rows()))[j];
+                batch.extend_from_slice(&row);
+            }
+        }
+    }
+    let mut changes = Vec::new();
+    for e in explainers {
+        let mut predicted = Vec::with_capacity(batch.len() / width * ns);
+        for chunk in batch.chunks(65_536 * width) {
+            predicted.extend(
+                e.model()
+                    .regressor
+                    .predict(chunk)
+                    .map_err(|err| ExplainError::Options(err.to_string()))?,
+            );
+        }
+        // d per pair: row 2p minus row 2p+1.
+        let d: Vec<f64> = predicted
+            .chunks_exact(2 * ns)
+            .flat_map(|pair| (0..ns).map(move |s| pair[s] as f64 - pair[ns + s] as f64))
+            .collect();
+        changes.push(d);
+    }
+    let model_pairs: Vec<(usize, usize)> = (0..changes.len())
+        .flat_map(|a| (a + 1..changes.len()).map(move |b| (a, b)))
+        .collect();
+    let mut values = vec![0.0; rows.len() * na * ns];
+    for (cell, v) in values.chunks_exact_mut(ns).enumerate() {
+        for (s, out) in v.iter_mut().enumerate() {
+            let mut sum = 0.0;
+            for &(a, b) in &model_pairs {
+                for p in 0..k {
+                    let i = (cell * k + p) * ns + s;
+                    sum += changes[a][i] * changes[b][i];
+                }
+            }
+            *out = sum / (k * model_pairs.len()) as f64;
+        }
+    }
+    Ok(Effects {
+        method: "agreement".into(),
+        rows,
+        n_action: na,
+        n_state: ns,
+        values,
+    })
+}
+
+/// Verdicts from signed per-observation effects (see [`agreement_effects`]): score = the
+/// t statistic of their mean over the observations `members`, interval = mean ± the
+/// Bonferroni-corrected critical value × standard error, verdict = the interval's lower
+/// bound above 0 (family-wise error 5 % over every pair). Features the data never changes
+/// within a transition (`scale` 0) are never claimed.
+pub fn significance_claims(
+    effects: &Effects,
+    members: &[usize],
+    scale: &[f64],
+    context: &str,
+    action_names: &[String],
+    state_names: &[String],
+) -> EdgeClaims {
+    let (na, ns) = (effects.n_action, effects.n_state);
+    let z = z_critical(0.05, na * ns);
+    let n = members.len();
+    let mut score = vec![vec![0.0; ns]; na];
+    let mut interval = vec![vec![[0.0; 2]; ns]; na];
+    let mut drives = vec![vec![false; ns]; na];
+    for a in 0..na {
+        for k in 0..ns {
+            if n < 2 || scale[k] == 0.0 {
+                continue;
+            }
+            let values = members.iter().map(|&o| effects.at(o, a, k));
+            let mean = values.clone().sum::<f64>() / n as f64;
+            let var = values.map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+            let se = (var / n as f64).sqrt();
+            score[a][k] = if se > 0.0 { mean / se } else { 0.0 };
+            interval[a][k] = [mean - z * se, mean + z * se];
+            drives[a][k] = se > 0.0 && mean - z * se > 0.0;
+        }
+    }
+    EdgeClaims {
+        method: effects.method.clone(),
+        rule: format!(
+            "drives when the mean product of two independently trained models' changes is above 0 at family-wise 5 % (z > {z:.2}, Bonferroni over {} pairs)",
+            na * ns
+        ),
+        context: context.to_owned(),
+        horizon: 1,
+        observations: n,
+        action_names: action_names.to_vec(),
+        state_names: state_names.to_vec(),
+        score,
+        interval: Some(interval),
+        drives,
+    }
+}
+
+/// Rows whose a_j stands in for draws of a_j given (s(t), a_−j(t)): the nearest rows in
+/// standardised Euclidean distance over the state and the other actions, among a seeded pool.
+/// Marginal draws put an action where it never occurs (switching on a magnet that is on,
+/// or moving while the babbler releases the cube at rest), where a network's output is
+/// arbitrary and, worse, correlated with the other inputs; conditional draws keep the test
+/// of [`holdout_effects`] unbiased.
+struct NeighbourDonors {
+    pool: Vec<usize>,
+    state_weight: Vec<f64>,
+    action_weight: Vec<f64>,
+}
+
+/// Rows the neighbours are searched among.
+const DONOR_POOL: usize = 20_000;
+
+/// 1 / standard deviation of each column over `pool` (0 for a constant column).
+fn inverse_std(pool: &[usize], width: usize, value: impl Fn(usize, usize) -> f64) -> Vec<f64> {
+    let n = pool.len().max(1) as f64;
+    (0..width)
+        .map(|k| {
+            let mean = pool.iter().map(|&r| value(r, k)).sum::<f64>() / n;
+            let var = pool
+                .iter()
+                .map(|&r| (value(r, k) - mean).powi(2))
+                .sum::<f64>()
+                / n;
+            if var > 0.0 { 1.0 / var.sqrt() } else { 0.0 }
+        })
+        .collect()
+}
+
+impl NeighbourDonors {
+    fn new(data: &Dataset, seed: u64) -> Self {
+        let mut rng = StdRng::seed_from_u64(seed ^ 0xD0_0A);
+        let pool = sample(&mut rng, data.rows(), DONOR_POOL.min(data.rows())).into_vec();
+        Self {
+            state_weight: inverse_std(&pool, data.state_width(), |r, k| data.state(r)[k] as f64),
+            action_weight: inverse_std(&pool, data.action_width(), |r, k| data.action(r)[k] as f64),
+            pool,
+        }
+    }
+
+    /// For every action j, the `k` pool rows nearest to row `row` in (s, a_−j), itself
+    /// excluded.
+    fn nearest(&self, data: &Dataset, row: usize, k: usize) -> Vec<Vec<usize>> {
+        let (x, a) = (data.state(row), data.action(row));
+        let squared = |u: &[f32], v: &[f32], w: &[f64]| -> Vec<f64> {
+            u.iter()
+                .zip(v)
+                .zip(w)
+                .map(|((&p, &q), &w)| ((p - q) as f64 * w).powi(2))
+                .collect()
+        };
+        let parts: Vec<(usize, f64, Vec<f64>)> = self
+            .pool
+            .iter()
+            .filter(|&&r| r != row)
+            .map(|&r| {
+                let state: f64 = squared(data.state(r), x, &self.state_weight).iter().sum();
+                (r, state, squared(data.action(r), a, &self.action_weight))
+            })
+            .collect();
+        (0..data.action_width())
+            .map(|j| {
+                let mut scored: Vec<(f64, usize)> = parts
+                    .iter()
+                    .map(|(r, state, actions)| {
+                        let others: f64 = actions.iter().sum::<f64>() - actions[j];
+                        (state + others, *r)
+                    })
+                    .collect();
+                let k = k.min(scored.len());
+                scored.select_nth_unstable_by(k.saturating_sub(1), |p, q| p.0.total_cmp(&q.0));
+                scored[..k].iter().map(|&(_, r)| r).collect()
+            })
+            .collect()
+    }
+}
+
+/// Holdout test of each edge on one model (in the way of the holdout randomization test,
+/// Tansey et al. 2018): per observation, g = f_k(s, a) − f_k^(−j), the part of the
+/// prediction a_j explains (f^(−j) averages the prediction over the a_j of the `resamples`
+/// nearest rows in (s, a_−j), draws of a_j given the rest), times the part of the observed change the model without a_j leaves
+/// unexplained, y_k − f_k^(−j). Where s_k(t+1) does not depend on a_j, that residual
+/// carries nothing a_j could explain and the product averages to 0, whatever the network
+/// leaks from a_j into output k; where it does, the product estimates the variance of the
+/// effect the model captured. Meaningful on rows the model was not trained on.
+pub fn holdout_effects(
+    explainer: &Explainer,
+    data: &Dataset,
+    settings: &InfluenceSettings,
+) -> Result<Effects> {
+    check(settings, data.rows())?;
+    let mut rng = StdRng::seed_from_u64(settings.seed);
+    let rows = sample(&mut rng, data.rows(), settings.observations).into_vec();
+    let (ns, na) = (data.state_width(), data.action_width());
+    let width = ns + na;
+    let base = forward_inputs(data, &rows);
+    let k = settings.resamples;
+    let donors = NeighbourDonors::new(data, settings.seed);
+    let mut batch = Vec::with_capacity(rows.len() * (1 + na * k) * width);
+    for (obs, &r) in rows.iter().enumerate() {
+        let x = &base[obs * width..(obs + 1) * width];
+        batch.extend_from_slice(x);
+        let near = donors.nearest(data, r, k);
+        for (j, donors) in near.iter().enumerate() {
+            for &d in donors {
+                let mut row = x.to_vec();
+                row[ns + j] = data.action(d)[j];
+                batch.extend_from_slice(&row);
+            }
+        }
+    }
+    let mut predicted = Vec::with_capacity(batch.len() / width * ns);
+    for chunk in batch.chunks(65_536 * width) {
+        predicted.extend(
+            explainer
+                .model()
+                .regressor
+                .predict(chunk)
+                .map_err(|e| ExplainError::Options(e.to_string()))?,
+        );
+    }
+    let mut angular = vec![false; ns];
+    for g in state_groups(data.experiment) {
+        angular[g.start..g.start + g.len].fill(g.angular);
+    }
+    let per_obs = (1 + na * k) * ns;
+    let mut values = vec![0.0; rows.len() * na * ns];
+    for (obs, &r) in rows.iter().enumerate() {
+        let p = &predicted[obs * per_obs..(obs + 1) * per_obs];
+        for s in 0..ns {
+            let d = data.next_state(r)[s] as f64 - data.state(r)[s] as f64;
+            let observed = if angular[s] { wrap_angle(d) } else { d };
+            let full = p[s] as f64;
+            for j in 0..na {
+                let start = (1 + j * k) * ns;
+                let without = (0..k).map(|i| p[start + i * ns + s] as f64).sum::<f64>() / k as f64;
+                values[(obs * na + j) * ns + s] = (full - without) * (observed - without);
+            }
+        }
+    }
+    Ok(Effects {
+        method: "holdout".into(),
+        rows,
+        n_action: na,
+        n_state: ns,
+        values,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normal_tail_and_bonferroni_quantiles() {
+        assert!((erfc(0.0) - 1.0).abs() < 1e-7);
+        assert!((erfc(1.0) - 0.157_299_207).abs() < 1e-7);
+        assert!((z_critical(0.05, 1) - 1.644_854).abs() < 1e-4);
+        // One-sided 0.05 / 184: z = 3.4584 (the exp2 grid of 8 × 23 pairs).
+        assert!((z_critical(0.05, 184) - 3.458_36).abs() < 1e-3);
+    }
+
+    fn effects(values: Vec<f64>) -> Effects {
+        Effects {
+            method: "test".into(),
+            rows: (0..values.len()).collect(),
+            n_action: 1,
+            n_state: 1,
+            values,
+        }
+    }
+
+    #[test]
+    fn significance_claims_an_effect_only_when_its_mean_clears_the_corrected_bound() {
+        let names = |n: &str| vec![n.to_owned()];
+        let members: Vec<usize> = (0..400).collect();
+        // Noise around 0: no claim. Noise around 1 with spread 1: t = 20, a claim.
+        let noise: Vec<f64> = (0..400)
+            .map(|i| ((i * 37 % 101) as f64 - 50.0) / 29.0)
+            .collect();
+        let null = significance_claims(
+            &effects(noise.clone()),
+            &members,
+            &[1.0],
+            "all",
+            &names("a"),
+            &names("s"),
+        );
+        assert!(!null.drives[0][0], "t = {}", null.score[0][0]);
+        let shifted: Vec<f64> = noise.iter().map(|v| v + 1.0).collect();
+        let edge = significance_claims(
+            &effects(shifted),
+            &members,
+            &[1.0],
+            "all",
+            &names("a"),
+            &names("s"),
+        );
+        assert!(edge.drives[0][0] && edge.score[0][0] > 10.0);
+        // A feature the data never changes is never claimed.
+        let frozen = significance_claims(
+            &effects(vec![1.0; 400]),
+            &members,
+            &[0.0],
+            "all",
+            &names("a"),
+            &names("s"),
+        );
+        assert!(!frozen.drives[0][0]);
+    }
+}

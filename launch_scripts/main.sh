@@ -4,6 +4,7 @@
 # kinematics, runs both experiments' data-generation graphs (simulator, babbler and
 # recorder as three ROS 2 node processes over DDS, inside a private loopback-only network
 # namespace) on the quick profile, cross-validates the paper's models on those bags,
+# intervenes in the simulator on states of both bags for the causal ground truth,
 # runs the exp1 mental simulation, has the trainer node train an FM from a bag and asks it
 # for a prediction over DDS, explains
 # the exp2 forward model with Deep SHAP and Kernel SHAP (heat map, partial dependence plots,
@@ -42,9 +43,15 @@ tests/netns-run bash -c '
     --json "{\"state\":[0,0.5,0,-1.2,0,0.8,0,0.55,0,0.45],\"action\":[0.05,0,0,0,0,0,0],\"rows\":1}"
   status=$?; kill -INT $node; wait $node; exit $status'
 
-echo "==> knowledge extraction: Deep SHAP and Kernel SHAP of the exp2 forward model (200 observations)"
-$BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method deep
-$BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method kernel --no-pair-plots
+echo "==> causal ground truth: the simulator revisits 500 states of each bag and intervenes on every action"
+$BIN intervene exp1 --bag bags/quick_exp1 --states 500 --out models/quick_exp1/truth
+$BIN intervene exp2 --bag bags/quick_exp2 --states 500 --horizon 3 --out models/quick_exp2/truth
+
+echo "==> knowledge extraction: Deep SHAP, Kernel SHAP and CAI influence of the forward models, scored against that truth"
+$BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method deep --truth models/quick_exp2/truth
+$BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method kernel --no-pair-plots --truth models/quick_exp2/truth
+$BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method cai --truth models/quick_exp2/truth
+$BIN explain --model models/quick_exp1 --bag bags/quick_exp1 --method kernel --no-pair-plots --truth models/quick_exp1/truth
 
 echo "==> the explainer node's latched /explainer/relevance report over DDS (state features no action affects)"
 tests/netns-run bash -c '
@@ -62,3 +69,4 @@ echo "    models + metrics.json:    models/quick_exp1 models/quick_exp2 models/n
 echo "    mental simulation:        models/quick_exp1/mental_simulation.png"
 echo "    SHAP heat map and PDPs:   models/quick_exp2/explain-deep/{heatmap,pdp_grid}.png, pdp/"
 echo "    relevance report:         models/quick_exp2/explain-{deep,kernel}/relevance.{json,csv}"
+echo "    causal truth + scores:    models/quick_exp{1,2}/truth/truth.{json,csv,heatmap.png}, models/quick_exp2/explain-*/scores.json"

@@ -326,11 +326,16 @@ fn finish_claims(args: &ExplainArgs, out: &Path, claims: &[EdgeClaims]) -> anyho
         rows.extend(score_claims(&truth, c)?);
     }
     println!(
-        "scored against {} ({} states):",
+        "scored against {} ({} states; blocks over all states, contexts over all pairs; every row in scores.json):",
         truth_path.display(),
         truth.one_step().states
     );
-    print!("{}", score_table(&rows));
+    let shown: Vec<_> = rows
+        .iter()
+        .filter(|r| r.context == "all" || r.block == "all")
+        .cloned()
+        .collect();
+    print!("{}", score_table(&shown));
     let path = out.join("scores.json");
     std::fs::write(&path, serde_json::to_string_pretty(&rows)?)
         .with_context(|| format!("cannot write {}", path.display()))?;

@@ -71,6 +71,22 @@ pub fn state_names(experiment: Experiment) -> Vec<String> {
     }
 }
 
+/// Number of state features, without building the names.
+pub const fn state_width(experiment: Experiment) -> usize {
+    match experiment {
+        Experiment::Exp1 => 10,
+        Experiment::Exp2 => 23,
+    }
+}
+
+/// Number of action features, without building the names.
+pub const fn action_width(experiment: Experiment) -> usize {
+    match experiment {
+        Experiment::Exp1 => 7,
+        Experiment::Exp2 => 8,
+    }
+}
+
 /// Names of a's features: `a0..a6` joint deltas, and `a_mgt` (−1 off, 0 keep, +1 on) in exp 2.
 pub fn action_names(experiment: Experiment) -> Vec<String> {
     let deltas = (0..7).map(|i| format!("a{i}"));
@@ -110,6 +126,10 @@ mod tests {
         assert_eq!(action_names(Experiment::Exp2).len(), 8);
         assert_eq!(state_names(Experiment::Exp1).len(), 10);
         assert_eq!(state_names(Experiment::Exp2)[9], "theta0");
+        for exp in [Experiment::Exp1, Experiment::Exp2] {
+            assert_eq!(state_width(exp), state_names(exp).len());
+            assert_eq!(action_width(exp), action_names(exp).len());
+        }
     }
 
     #[test]

@@ -85,14 +85,14 @@ impl Dataset {
         self.episodes.len()
     }
 
-    /// Width of s.
+    /// Width of s (constant time: row accessors call it for every row).
     pub fn state_width(&self) -> usize {
-        state_names(self.experiment).len()
+        features::state_width(self.experiment)
     }
 
     /// Width of a.
     pub fn action_width(&self) -> usize {
-        action_names(self.experiment).len()
+        features::action_width(self.experiment)
     }
 
     /// Row `i` of s(t).

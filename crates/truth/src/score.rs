@@ -90,7 +90,7 @@ pub fn score_claims(truth: &Truth, claims: &EdgeClaims) -> Result<Vec<ScoreRow>,
 pub fn score_table(rows: &[ScoreRow]) -> String {
     let rate = |v: Option<f64>| v.map_or("   n/a".to_owned(), |v| format!("{v:>6.3}"));
     let mut out = format!(
-        "{:<8} {:<14} {:<8} {:>2} {:>6} {:>6} {:>6} {:>4} {:>6} {:>6} {:>5} {:>4}\n",
+        "{:<14} {:<14} {:<8} {:>2} {:>6} {:>6} {:>6} {:>4} {:>6} {:>6} {:>5} {:>4}\n",
         "method",
         "context",
         "block",
@@ -107,7 +107,7 @@ pub fn score_table(rows: &[ScoreRow]) -> String {
     for r in rows {
         let s = &r.scores;
         out.push_str(&format!(
-            "{:<8} {:<14} {:<8} {:>2} {} {} {} {:>4} {} {} {:>5} {:>4}\n",
+            "{:<14} {:<14} {:<8} {:>2} {} {} {} {:>4} {} {} {:>5} {:>4}\n",
             r.method,
             r.context,
             r.block,

@@ -74,6 +74,76 @@ impl Effects {
     }
 }
 
+/// The observations an estimator probes: rows drawn from the data (seeded), their forward
+/// inputs `[state ++ action]`, and the generator that continues to draw from.
+struct Probe {
+    rng: StdRng,
+    rows: Vec<usize>,
+    base: Vec<f32>,
+    ns: usize,
+    na: usize,
+    width: usize,
+}
+
+impl Probe {
+    fn draw(data: &Dataset, settings: &InfluenceSettings) -> Result<Self> {
+        check(settings, data.rows())?;
+        let mut rng = StdRng::seed_from_u64(settings.seed);
+        let rows = sample(&mut rng, data.rows(), settings.observations).into_vec();
+        let (ns, na) = (data.state_width(), data.action_width());
+        Ok(Self {
+            base: forward_inputs(data, &rows),
+            rng,
+            rows,
+            ns,
+            na,
+            width: ns + na,
+        })
+    }
+}
+
+impl Probe {
+    /// Input rows probing every action: per observation and action j, `count` copies of the
+    /// observation with a_j replaced by draw number `index(j, i)` of [`ActionDraws`].
+    fn batch(
+        &mut self,
+        data: &Dataset,
+        count: usize,
+        index: impl Fn(usize, usize) -> usize,
+    ) -> Vec<f32> {
+        let draws = ActionDraws::new(data);
+        let mut batch = Vec::with_capacity(self.rows.len() * self.na * count * self.width);
+        for obs in 0..self.rows.len() {
+            let x = &self.base[obs * self.width..(obs + 1) * self.width];
+            for j in 0..self.na {
+                for i in 0..count {
+                    let mut row = x.to_vec();
+                    row[self.ns + j] = draws.draw(data, j, index(j, i), &mut self.rng);
+                    batch.extend_from_slice(&row);
+                }
+            }
+        }
+        batch
+    }
+}
+
+/// The network's own output for input rows `batch` (`width` wide), in chunks that bound
+/// the activations' memory: for a delta model s(t+1) − s(t), whose changes over a_j are
+/// those of s(t+1) (s(t) is fixed), without f32 rounding of the offset or angle wrapping.
+fn network_outputs(explainer: &Explainer, batch: &[f32], width: usize) -> Result<Vec<f32>> {
+    let mut predicted = Vec::new();
+    for chunk in batch.chunks(65_536 * width) {
+        predicted.extend(
+            explainer
+                .model()
+                .regressor
+                .predict(chunk)
+                .map_err(|e| ExplainError::Options(e.to_string()))?,
+        );
+    }
+    Ok(predicted)
+}
+
 /// Distinct values of action column `j` when it takes at most a few (the magnet command's
 /// −1, 0, +1): such an action is probed at every value, as the simulator's truth flips
 /// it, rather than at marginal draws that almost never leave its common value.
@@ -124,36 +194,17 @@ pub fn cai_effects(
     data: &Dataset,
     settings: &InfluenceSettings,
 ) -> Result<Effects> {
-    check(settings, data.rows())?;
-    let mut rng = StdRng::seed_from_u64(settings.seed);
-    let rows = sample(&mut rng, data.rows(), settings.observations).into_vec();
-    let (ns, na) = (data.state_width(), data.action_width());
-    let width = ns + na;
-    let base = forward_inputs(data, &rows);
+    let mut probe = Probe::draw(data, settings)?;
     let k = settings.resamples;
-    let draws = ActionDraws::new(data);
-    let mut batch = Vec::with_capacity(rows.len() * na * k * width);
-    for obs in 0..rows.len() {
-        let x = &base[obs * width..(obs + 1) * width];
-        for j in 0..na {
-            for i in 0..k {
-                let mut row = x.to_vec();
-                row[ns + j] = draws.draw(data, j, i, &mut rng);
-                batch.extend_from_slice(&row);
-            }
-        }
-    }
-    // The network's own output: for a delta model s(t+1) − s(t), whose spread over a_j is
-    // that of s(t+1) (s(t) is fixed), without f32 rounding of the offset or angle wrapping.
-    let regressor = &explainer.model().regressor;
-    let mut predicted = Vec::with_capacity(rows.len() * na * k * ns);
-    for chunk in batch.chunks(65_536 * width) {
-        predicted.extend(
-            regressor
-                .predict(chunk)
-                .map_err(|e| ExplainError::Options(e.to_string()))?,
-        );
-    }
+    let batch = probe.batch(data, k, |_, i| i);
+    let Probe {
+        rows,
+        ns,
+        na,
+        width,
+        ..
+    } = probe;
+    let predicted = network_outputs(explainer, &batch, width)?;
     let mut values = vec![0.0; rows.len() * na * ns];
     for (group, out) in predicted
         .chunks_exact(k * ns)
@@ -419,42 +470,23 @@ pub fn agreement_effects(
             explainers.len()
         )));
     }
-    check(settings, data.rows())?;
-    let mut rng = StdRng::seed_from_u64(settings.seed);
-    let rows = sample(&mut rng, data.rows(), settings.observations).into_vec();
-    let (ns, na) = (data.state_width(), data.action_width());
-    let width = ns + na;
-    let base = forward_inputs(data, &rows);
+    let mut probe = Probe::draw(data, settings)?;
     let k = settings.resamples;
-    let draws = ActionDraws::new(data);
-    let mut batch = Vec::with_capacity(rows.len() * na * k * 2 * width);
-    for obs in 0..rows.len() {
-        let x = &base[obs * width..(obs + 1) * width];
-        for j in 0..na {
-            for i in 0..2 * k {
-                // Pairs (v, v′) of distinct values for a discrete action: all ordered pairs in turn.
-                let i = if draws.discrete[j].is_some() {
-                    i + i / 2
-                } else {
-                    i
-                };
-                let mut row = x.to_vec();
-                row[ns + j] = draws.draw(data, j, i, &mut rng);
-                batch.extend_from_slice(&row);
-            }
-        }
-    }
+    let discrete = ActionDraws::new(data).discrete;
+    // Pairs (v, v′) of distinct values for a discrete action: all ordered pairs in turn.
+    let batch = probe.batch(data, 2 * k, |j, i| {
+        if discrete[j].is_some() { i + i / 2 } else { i }
+    });
+    let Probe {
+        rows,
+        ns,
+        na,
+        width,
+        ..
+    } = probe;
     let mut changes = Vec::new();
     for e in explainers {
-        let mut predicted = Vec::with_capacity(batch.len() / width * ns);
-        for chunk in batch.chunks(65_536 * width) {
-            predicted.extend(
-                e.model()
-                    .regressor
-                    .predict(chunk)
-                    .map_err(|err| ExplainError::Options(err.to_string()))?,
-            );
-        }
+        let predicted = network_outputs(e, &batch, width)?;
         // d per pair: row 2p minus row 2p+1.
         let d: Vec<f64> = predicted
             .chunks_exact(2 * ns)
@@ -636,12 +668,14 @@ pub fn holdout_effects(
     data: &Dataset,
     settings: &InfluenceSettings,
 ) -> Result<Effects> {
-    check(settings, data.rows())?;
-    let mut rng = StdRng::seed_from_u64(settings.seed);
-    let rows = sample(&mut rng, data.rows(), settings.observations).into_vec();
-    let (ns, na) = (data.state_width(), data.action_width());
-    let width = ns + na;
-    let base = forward_inputs(data, &rows);
+    let Probe {
+        rng: _,
+        rows,
+        base,
+        ns,
+        na,
+        width,
+    } = Probe::draw(data, settings)?;
     let k = settings.resamples;
     let donors = NeighbourDonors::new(data, settings.seed);
     let mut batch = Vec::with_capacity(rows.len() * (1 + na * k) * width);
@@ -657,16 +691,7 @@ pub fn holdout_effects(
             }
         }
     }
-    let mut predicted = Vec::with_capacity(batch.len() / width * ns);
-    for chunk in batch.chunks(65_536 * width) {
-        predicted.extend(
-            explainer
-                .model()
-                .regressor
-                .predict(chunk)
-                .map_err(|e| ExplainError::Options(e.to_string()))?,
-        );
-    }
+    let predicted = network_outputs(explainer, &batch, width)?;
     let mut angular = vec![false; ns];
     for g in state_groups(data.experiment) {
         angular[g.start..g.start + g.len].fill(g.angular);

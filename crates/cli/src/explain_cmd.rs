@@ -317,6 +317,28 @@ fn finish_claims(args: &ExplainArgs, out: &Path, claims: &[EdgeClaims]) -> anyho
             println!("{action:<6} drives (calibrated) {}", driven.join(", "));
         }
     }
+    if let Some(first) = claims.first() {
+        let stem = out.join("verdicts_heatmap");
+        let values: Vec<f64> = first
+            .drives
+            .iter()
+            .flatten()
+            .map(|&d| if d { 1.0 } else { 0.0 })
+            .collect();
+        causal_arm_plots::heatmap(
+            &stem,
+            &format!(
+                "{}: which action drives which s(t+1) (1 = claimed)",
+                first.method
+            ),
+            &first.action_names,
+            &first.state_names,
+            &values,
+            "claimed",
+            causal_arm_plots::HeatmapScale::Linear,
+        )?;
+        eprintln!("wrote {}.png and {}.svg", stem.display(), stem.display());
+    }
     let Some(truth_path) = &args.truth else {
         return Ok(());
     };

@@ -118,7 +118,8 @@ impl Probe {
             for j in 0..self.na {
                 for i in 0..count {
                     let mut row = x.to_vec();
-                    row[self.ns + j] = draws.draw(data, j, index(j, i), &mut self.rng);
+                    row[self.ns + j] =
+                        draws.draw(data, j, index(j, i), &x[..self.ns], &mut self.rng);
                     batch.extend_from_slice(&row);
                 }
             }
@@ -148,42 +149,86 @@ fn network_outputs(explainer: &Explainer, batch: &[f32], width: usize) -> Result
 /// −1, 0, +1): such an action is probed at every value, as the simulator's truth flips
 /// it, rather than at marginal draws that almost never leave its common value.
 pub fn discrete_values(data: &Dataset, j: usize) -> Option<Vec<f32>> {
-    let mut values: Vec<f32> = Vec::new();
-    for r in 0..data.rows() {
-        let v = data.action(r)[j];
-        if !values.contains(&v) {
-            if values.len() == 8 {
-                return None;
-            }
-            values.push(v);
-        }
-    }
-    values.sort_by(f32::total_cmp);
-    Some(values)
+    distinct_values(data.rows(), |r| data.action(r)[j], 8)
 }
 
-/// Draws of action `j` for probing: its values in turn when discrete, else from its
-/// marginal (a random row's value).
+/// Draws of action `j` for probing. A continuous action: a random row's value (its
+/// marginal). A discrete one (the magnet command): its values in turn, but only those the
+/// data shows in states like this one (same values of every discrete state feature, the
+/// magnet's on/off): switching on a magnet that is on never occurs, and a network's answer
+/// there is arbitrary.
 struct ActionDraws {
     discrete: Vec<Option<Vec<f32>>>,
+    /// State columns with few distinct values (the context a discrete action's support
+    /// depends on).
+    discrete_states: Vec<usize>,
+    /// Per action: the values seen with each combination of the discrete state features.
+    support: Vec<std::collections::BTreeMap<Vec<u32>, Vec<f32>>>,
 }
 
 impl ActionDraws {
     fn new(data: &Dataset) -> Self {
+        let discrete: Vec<Option<Vec<f32>>> = (0..data.action_width())
+            .map(|j| discrete_values(data, j))
+            .collect();
+        let discrete_states: Vec<usize> = (0..data.state_width())
+            .filter(|&k| distinct_values(data.rows(), |r| data.state(r)[k], 8).is_some())
+            .collect();
+        let mut support = vec![std::collections::BTreeMap::new(); data.action_width()];
+        for (j, values) in discrete.iter().enumerate() {
+            if values.is_none() {
+                continue;
+            }
+            for r in 0..data.rows() {
+                let seen: &mut Vec<f32> = support[j]
+                    .entry(Self::key(&discrete_states, data.state(r)))
+                    .or_default();
+                let v = data.action(r)[j];
+                if !seen.contains(&v) {
+                    seen.push(v);
+                    seen.sort_by(f32::total_cmp);
+                }
+            }
+        }
         Self {
-            discrete: (0..data.action_width())
-                .map(|j| discrete_values(data, j))
-                .collect(),
+            discrete,
+            discrete_states,
+            support,
         }
     }
 
-    /// Draw number `i` of action `j`.
-    fn draw(&self, data: &Dataset, j: usize, i: usize, rng: &mut StdRng) -> f32 {
+    fn key(columns: &[usize], state: &[f32]) -> Vec<u32> {
+        columns.iter().map(|&k| state[k].to_bits()).collect()
+    }
+
+    /// Draw number `i` of action `j` for the observation with state `state`.
+    fn draw(&self, data: &Dataset, j: usize, i: usize, state: &[f32], rng: &mut StdRng) -> f32 {
         match &self.discrete[j] {
-            Some(values) => values[i % values.len()],
+            Some(values) => {
+                let seen = self.support[j]
+                    .get(&Self::key(&self.discrete_states, state))
+                    .unwrap_or(values);
+                seen[i % seen.len()]
+            }
             None => data.action(rng.random_range(0..data.rows()))[j],
         }
     }
+}
+
+/// The distinct values of `value(r)` over `rows` rows, sorted, if there are at most `limit`.
+fn distinct_values(rows: usize, value: impl Fn(usize) -> f32, limit: usize) -> Option<Vec<f32>> {
+    let mut seen: Vec<f32> = Vec::new();
+    for r in 0..rows {
+        let v = value(r);
+        if !seen.contains(&v) {
+            if seen.len() == limit {
+                return None;
+            }
+            seen.push(v);
+        }
+    }
+    seen.sort_by(f32::total_cmp);
+    Some(seen)
 }
 
 /// CAI influence: for each of `settings.observations` rows drawn from `data`, the standard
@@ -731,6 +776,74 @@ mod tests {
         assert!((z_critical(0.05, 1) - 1.644_854).abs() < 1e-4);
         // One-sided 0.05 / 184: z = 3.4584 (the exp2 grid of 8 × 23 pairs).
         assert!((z_critical(0.05, 184) - 3.458_36).abs() < 1e-3);
+    }
+
+    /// Exp-2 rows: magnet off with a_mgt ∈ {0, +1}, magnet on with a_mgt ∈ {0, −1}.
+    fn magnet_rows() -> Dataset {
+        let mut data = Dataset {
+            experiment: causal_arm_dataset::Experiment::Exp2,
+            action_source: Default::default(),
+            states: Vec::new(),
+            actions: Vec::new(),
+            next_states: Vec::new(),
+            episodes: Vec::new(),
+            holding: Vec::new(),
+            steps: Vec::new(),
+            stamps_ns: Vec::new(),
+            sources: Vec::new(),
+        };
+        for (i, (mgt, command)) in [(0.0, 0.0), (0.0, 1.0), (1.0, 0.0), (1.0, -1.0)]
+            .into_iter()
+            .cycle()
+            .take(40)
+            .enumerate()
+        {
+            let mut state = vec![0.1 * i as f32; 23];
+            state[22] = mgt;
+            data.states.extend(&state);
+            data.next_states.extend(&state);
+            data.actions.extend([0.01 * i as f32; 7]);
+            data.actions.push(command);
+            data.episodes.push(0);
+            data.holding.push(0);
+            data.steps.push(i as u32);
+            data.stamps_ns.push(i as u64);
+        }
+        data
+    }
+
+    #[test]
+    fn a_discrete_action_is_probed_only_at_values_seen_in_such_states() {
+        let data = magnet_rows();
+        let draws = ActionDraws::new(&data);
+        assert_eq!(draws.discrete[7], Some(vec![-1.0, 0.0, 1.0]));
+        assert_eq!(draws.discrete[0], None, "joint deltas are continuous");
+        assert_eq!(
+            draws.discrete_states,
+            vec![22],
+            "only mgt is a discrete state feature"
+        );
+        let mut rng = StdRng::seed_from_u64(0);
+        let probe = |mgt: f32, rng: &mut StdRng| -> Vec<f32> {
+            let mut state = vec![0.0; 23];
+            state[22] = mgt;
+            let mut v: Vec<f32> = (0..6)
+                .map(|i| draws.draw(&data, 7, i, &state, rng))
+                .collect();
+            v.sort_by(f32::total_cmp);
+            v.dedup();
+            v
+        };
+        assert_eq!(
+            probe(0.0, &mut rng),
+            vec![0.0, 1.0],
+            "magnet off: keep or switch on"
+        );
+        assert_eq!(
+            probe(1.0, &mut rng),
+            vec![-1.0, 0.0],
+            "magnet on: keep or switch off"
+        );
     }
 
     fn effects(values: Vec<f64>) -> Effects {

@@ -2,7 +2,8 @@
 
 The node binaries (causal_arm_sim, causal_arm_babbler, causal_arm_recorder) are looked up
 on PATH or in CAUSAL_ARM_BIN_DIR (default: <repo>/target/release). Launch arguments mirror
-`causal-arm launch`: profile, steps, episodes, seed, sigma, velocity_scale, out, overwrite.
+`causal-arm launch`: profile, steps, episodes, seed, sigma, velocity_scale,
+move_while_switching, out, overwrite.
 """
 
 import os
@@ -32,6 +33,7 @@ def graph(experiment: str, default_out: str) -> LaunchDescription:
         "seed": "0",
         "sigma": "0.35",
         "velocity_scale": "1.0",
+        "move_while_switching": "false",
         "out": default_out,
         "overwrite": "false",
     }
@@ -39,7 +41,8 @@ def graph(experiment: str, default_out: str) -> LaunchDescription:
 
     def params(*extra):
         items = ["experiment:=" + experiment]
-        for key in ("profile", "steps", "episodes", "seed", "sigma", "velocity_scale"):
+        for key in ("profile", "steps", "episodes", "seed", "sigma", "velocity_scale",
+                    "move_while_switching"):
             items.append([key, ":=", LaunchConfiguration(key)])
         items.extend(extra)
         out = ["--ros-args"]

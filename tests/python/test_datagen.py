@@ -171,14 +171,16 @@ def _canonical(bag):
     return {t: [(ts, norm(m)) for ts, m in msgs] for t, msgs in topics.items()}
 
 
-def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, private_netns):
+@pytest.mark.parametrize("flags", [[], ["--move-while-switching"]])
+def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, private_netns, flags):
     env = {"ROS_DOMAIN_ID": "17", "RUST_LOG": "warn"}
     dds = tmp_path / "dds"
-    r = run_cli("launch", "exp2", "--episodes", "1", "--seed", "8", "--out", dds, env=env, timeout=600)
+    r = run_cli("launch", "exp2", "--episodes", "1", "--seed", "8", *flags, "--out", dds, env=env,
+                timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     assert str(dds) in r.stdout
     local = tmp_path / "local"
-    r = run_cli("generate", "exp2", "--episodes", "1", "--seed", "8", "--out", local)
+    r = run_cli("generate", "exp2", "--episodes", "1", "--seed", "8", *flags, "--out", local)
     assert r.returncode == 0, r.stderr
     a, b = _canonical(dds), _canonical(local)
     assert a.keys() == b.keys()

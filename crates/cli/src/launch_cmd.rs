@@ -54,11 +54,6 @@ fn wait_with_timeout(
 /// Runs `causal-arm launch`.
 pub fn run(args: &GenerateArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     let options = args.options()?;
-    if args.move_while_switching {
-        bail!(
-            "--move-while-switching is not a parameter of the babbler node yet; use causal-arm generate"
-        );
-    }
     causal_arm_datagen::validate(&options)?;
     if !options.overwrite
         && let Some(found) = causal_arm_recorder::existing_bag(&options.out)
@@ -74,6 +69,10 @@ pub fn run(args: &GenerateArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
         format!("seed:={}", options.seed),
         format!("sigma:={}", options.exp1.sigma),
         format!("velocity_scale:={}", options.sim.velocity_scale),
+        format!(
+            "move_while_switching:={}",
+            options.exp2.move_while_switching
+        ),
         format!("steps:={}", plan.steps_per_episode),
         format!("episodes:={}", plan.episodes),
     ];

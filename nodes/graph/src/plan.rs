@@ -47,6 +47,11 @@ pub fn run_param_specs() -> Vec<ParamSpec> {
             "scale of the URDF joint velocity limits in the simulator",
         )
         .with_range(0.01, 1000.0),
+        ParamSpec::new(
+            "move_while_switching",
+            ParamValue::Bool(false),
+            "exp2: move while switching the magnet instead of holding the arm still",
+        ),
     ]
 }
 
@@ -81,6 +86,7 @@ impl RunParams {
             GenerateOptions::new(experiment, plan, params.integer("seed") as u64, out);
         options.exp1.sigma = params.double("sigma");
         options.sim.velocity_scale = params.double("velocity_scale");
+        options.exp2.move_while_switching = params.bool("move_while_switching");
         Ok(Self { options })
     }
 

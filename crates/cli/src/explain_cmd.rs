@@ -7,7 +7,8 @@ use crate::progress::Counter;
 use anyhow::Context;
 use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
 use causal_arm_explainer::influence::{
-    InfluenceSettings, Rule, agreement_effects, cai_effects, claims_by_context, holdout_effects,
+    InfluenceSettings, Rule, UnionPart, agreement_effects, cai_effects, claims_by_context,
+    holdout_effects, threshold_claims_by_context, union_claims,
 };
 use causal_arm_explainer::output::write_all;
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
@@ -176,14 +177,7 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
         .unwrap_or_else(|| args.model.join(format!("explain-{}", settings.method)));
     let written = write_all(&out, &explanation, &report, !args.no_pair_plots)
         .with_context(|| format!("cannot write the explanation into {}", out.display()))?;
-    let mut claims = vec![report.claims()];
-    claims.extend(claims_by_context(
-        &explainer,
-        &data,
-        &explanation.effects(),
-        &influence_settings(args),
-        Rule::ErrorRatio,
-    )?);
+    let claims = shap_and_cai_claims(args, &explainer, &data, &explanation)?;
     finish_claims(args, &out, &claims)?;
 
     println!(
@@ -252,6 +246,45 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The claims of a SHAP run, the default first: SHAP by today's rule (every context) united
+/// with CAI by its error floor, per context (`<method>+cai`; in context `all`, SHAP of any
+/// context counts); then SHAP by today's rule, SHAP against the model's error, and CAI alone.
+fn shap_and_cai_claims(
+    args: &ExplainArgs,
+    explainer: &Explainer,
+    data: &Dataset,
+    explanation: &causal_arm_explainer::Explanation,
+) -> anyhow::Result<Vec<EdgeClaims>> {
+    let settings = influence_settings(args);
+    let effects = explanation.effects();
+    let shap = threshold_claims_by_context(explainer, data, &effects, args.threshold);
+    let shap_err = claims_by_context(explainer, data, &effects, &settings, Rule::ErrorRatio)?;
+    let cai_effects = cai_effects(explainer, data, &settings)?;
+    let cai = claims_by_context(explainer, data, &cai_effects, &settings, Rule::ErrorRatio)?;
+    let name = format!("{}+cai", explanation.settings.method);
+    let part = |c, threshold, lower_bound| UnionPart {
+        claims: c,
+        threshold,
+        lower_bound,
+    };
+    let mut out = Vec::new();
+    for (context, cai_context) in shap.iter().zip(&cai) {
+        let mut parts: Vec<UnionPart> = if context.context == "all" {
+            shap.iter()
+                .map(|c| part(c, args.threshold, false))
+                .collect()
+        } else {
+            vec![part(context, args.threshold, false)]
+        };
+        parts.push(part(cai_context, settings.kappa, true));
+        out.extend(union_claims(&name, &context.context, &parts));
+    }
+    out.extend(shap);
+    out.extend(shap_err);
+    out.extend(cai);
+    Ok(out)
+}
+
 /// `causal-arm explain --method cai|agreement`: influence of every action on the forward
 /// model(s), with verdicts by the method's rule.
 fn run_influence(args: &ExplainArgs) -> anyhow::Result<()> {
@@ -314,7 +347,11 @@ fn finish_claims(args: &ExplainArgs, out: &Path, claims: &[EdgeClaims]) -> anyho
                 .filter(|&(k, _)| calibrated.drives[a][k])
                 .map(|(_, s)| s.as_str())
                 .collect();
-            println!("{action:<6} drives (calibrated) {}", driven.join(", "));
+            println!(
+                "{action:<6} drives ({}) {}",
+                calibrated.method,
+                driven.join(", ")
+            );
         }
     }
     if let Some(first) = claims.first() {

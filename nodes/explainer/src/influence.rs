@@ -463,6 +463,137 @@ pub fn claims_by_context(
     Ok(out)
 }
 
+/// Today's relevance rule ([`crate::report`]) in every context: score = mean effect over the
+/// context's observations / the std of the feature's one-step change over the data, verdict
+/// = score ≥ `threshold`. In context `all` these are the relevance report's own claims.
+pub fn threshold_claims_by_context(
+    explainer: &Explainer,
+    data: &Dataset,
+    effects: &Effects,
+    threshold: f64,
+) -> Vec<EdgeClaims> {
+    let scale = crate::change_scale(data);
+    let (na, ns) = (effects.n_action, effects.n_state);
+    Context::of(data.experiment)
+        .iter()
+        .map(|context| {
+            let members: Vec<usize> = (0..effects.rows.len())
+                .filter(|&o| {
+                    context.holds(
+                        &ContextState::of_row(data, effects.rows[o]),
+                        &SimConfig::default(),
+                    )
+                })
+                .collect();
+            let n = members.len().max(1) as f64;
+            let score: Vec<Vec<f64>> = (0..na)
+                .map(|a| {
+                    (0..ns)
+                        .map(|k| {
+                            let mean =
+                                members.iter().map(|&o| effects.at(o, a, k)).sum::<f64>() / n;
+                            if scale[k] > 0.0 { mean / scale[k] } else { 0.0 }
+                        })
+                        .collect()
+                })
+                .collect();
+            EdgeClaims {
+                method: effects.method.clone(),
+                rule: format!("mean |SHAP| >= {threshold} x std of the one-step change"),
+                context: context.name.to_owned(),
+                horizon: 1,
+                observations: members.len(),
+                action_names: explainer.action_names().to_vec(),
+                state_names: explainer.state_names().to_vec(),
+                drives: score
+                    .iter()
+                    .map(|row| row.iter().map(|&v| v >= threshold).collect())
+                    .collect(),
+                score,
+                interval: None,
+            }
+        })
+        .collect()
+}
+
+/// One part of a union of claims, with the rule its verdicts followed: evidence ≥
+/// `threshold`, the evidence being the interval's lower bound when `lower_bound`, else the
+/// score.
+pub struct UnionPart<'a> {
+    /// The part's claims.
+    pub claims: &'a EdgeClaims,
+    /// Its verdict threshold.
+    pub threshold: f64,
+    /// Whether its verdicts compare the interval's lower bound (else the score).
+    pub lower_bound: bool,
+}
+
+impl UnionPart<'_> {
+    /// Evidence over threshold: ≥ 1 exactly where the part claims the edge.
+    fn margin(&self, a: usize, k: usize) -> f64 {
+        let evidence = match (&self.claims.interval, self.lower_bound) {
+            (Some(interval), true) => interval[a][k][0],
+            _ => self.claims.score[a][k],
+        };
+        evidence / self.threshold
+    }
+}
+
+/// Claims an edge wherever some part does; the score is the largest margin (evidence /
+/// threshold), so `score ≥ 1` is the verdict. Attributions of the actions as taken (SHAP)
+/// miss effects an action has only at values it rarely takes (the magnet's switch-off
+/// drops a held cube, yet a_mgt is almost always "keep"); influence under probing (CAI)
+/// sees those but misses small contributions its error floor hides: the union keeps both
+/// kinds of evidence, each at its own calibrated floor.
+pub fn union_claims(method: &str, context: &str, parts: &[UnionPart]) -> Option<EdgeClaims> {
+    let first = parts.first()?.claims;
+    let (na, ns) = (first.action_names.len(), first.state_names.len());
+    let score: Vec<Vec<f64>> = (0..na)
+        .map(|a| {
+            (0..ns)
+                .map(|k| {
+                    parts
+                        .iter()
+                        .map(|p| p.margin(a, k))
+                        .fold(f64::NEG_INFINITY, f64::max)
+                })
+                .collect()
+        })
+        .collect();
+    Some(EdgeClaims {
+        method: method.to_owned(),
+        rule: format!(
+            "drives where any of these does: {}",
+            parts
+                .iter()
+                .map(|p| format!(
+                    "{} ({}: {})",
+                    p.claims.method, p.claims.context, p.claims.rule
+                ))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ),
+        context: context.to_owned(),
+        horizon: first.horizon,
+        observations: parts
+            .iter()
+            .map(|p| p.claims.observations)
+            .max()
+            .unwrap_or(0),
+        action_names: first.action_names.clone(),
+        state_names: first.state_names.clone(),
+        drives: (0..na)
+            .map(|a| {
+                (0..ns)
+                    .map(|k| parts.iter().any(|p| p.claims.drives[a][k]))
+                    .collect()
+            })
+            .collect(),
+        score,
+        interval: None,
+    })
+}
+
 /// Two-sided normal quantile for the Bonferroni-corrected level `alpha / tests` (one-sided
 /// upper tail), by bisection on the complementary error function.
 fn z_critical(alpha: f64, tests: usize) -> f64 {
@@ -776,6 +907,57 @@ mod tests {
         assert!((z_critical(0.05, 1) - 1.644_854).abs() < 1e-4);
         // One-sided 0.05 / 184: z = 3.4584 (the exp2 grid of 8 × 23 pairs).
         assert!((z_critical(0.05, 184) - 3.458_36).abs() < 1e-3);
+    }
+
+    fn claims(score: f64, lower: f64, drives: bool) -> EdgeClaims {
+        EdgeClaims {
+            method: "m".into(),
+            rule: "r".into(),
+            context: "all".into(),
+            horizon: 1,
+            observations: 10,
+            action_names: vec!["a".into()],
+            state_names: vec!["s".into()],
+            score: vec![vec![score]],
+            interval: Some(vec![vec![[lower, lower + 1.0]]]),
+            drives: vec![vec![drives]],
+        }
+    }
+
+    #[test]
+    fn a_union_claims_what_any_part_claims_and_scores_the_largest_margin() {
+        // A threshold part (score 0.005 against 0.01: not claimed) and a lower-bound part
+        // (lower bound 3 against κ = 2: claimed).
+        let shap = claims(0.005, 0.0, false);
+        let cai = claims(5.0, 3.0, true);
+        let parts = [
+            UnionPart {
+                claims: &shap,
+                threshold: 0.01,
+                lower_bound: false,
+            },
+            UnionPart {
+                claims: &cai,
+                threshold: 2.0,
+                lower_bound: true,
+            },
+        ];
+        let u = union_claims("m+c", "all", &parts).unwrap();
+        assert!(u.drives[0][0]);
+        assert!((u.score[0][0] - 1.5).abs() < 1e-12, "{}", u.score[0][0]);
+        let neither = claims(1.0, 0.5, false);
+        let u = union_claims(
+            "m+c",
+            "all",
+            &[UnionPart {
+                claims: &neither,
+                threshold: 2.0,
+                lower_bound: true,
+            }],
+        )
+        .unwrap();
+        assert!(!u.drives[0][0] && u.score[0][0] < 1.0);
+        assert!(union_claims("m", "all", &[]).is_none());
     }
 
     /// Exp-2 rows: magnet off with a_mgt ∈ {0, +1}, magnet on with a_mgt ∈ {0, −1}.

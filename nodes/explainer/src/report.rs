@@ -190,35 +190,6 @@ impl Relevance {
             .any(|a| a.name == action && a.drives.iter().any(|s| s == state))
     }
 
-    /// The report's verdicts as claims to score (context `all`, horizon 1; raw score =
-    /// mean |SHAP| / change std, the quantity the threshold is applied to).
-    pub fn claims(&self) -> causal_arm_scoring::EdgeClaims {
-        let (na, ns) = (self.action_names.len(), self.state_names.len());
-        causal_arm_scoring::EdgeClaims {
-            method: self.method.clone(),
-            rule: format!(
-                "mean |SHAP| >= {} x std of the one-step change",
-                self.threshold
-            ),
-            context: "all".into(),
-            horizon: 1,
-            observations: self.observations,
-            action_names: self.action_names.clone(),
-            state_names: self.state_names.clone(),
-            score: (0..na)
-                .map(|a| (0..ns).map(|k| self.score(a, k)).collect())
-                .collect(),
-            interval: None,
-            drives: (0..na)
-                .map(|a| {
-                    (0..ns)
-                        .map(|k| self.score(a, k) >= self.threshold)
-                        .collect()
-                })
-                .collect(),
-        }
-    }
-
     /// The verdict on `state`, if it is a state feature.
     pub fn state(&self, state: &str) -> Option<&StateVerdict> {
         self.states.iter().find(|v| v.name == state)

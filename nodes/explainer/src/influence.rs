@@ -69,6 +69,18 @@ pub struct Effects {
 }
 
 impl Effects {
+    /// Indices of the observations whose s(t) is in `context`.
+    fn members(&self, data: &Dataset, context: &Context) -> Vec<usize> {
+        (0..self.rows.len())
+            .filter(|&o| {
+                context.holds(
+                    &ContextState::of_row(data, self.rows[o]),
+                    &SimConfig::default(),
+                )
+            })
+            .collect()
+    }
+
     fn at(&self, obs: usize, action: usize, state: usize) -> f64 {
         self.values[(obs * self.n_action + action) * self.n_state + state]
     }
@@ -432,14 +444,7 @@ pub fn claims_by_context(
     let scale = crate::change_scale(data);
     let mut out = Vec::new();
     for context in Context::of(data.experiment) {
-        let members: Vec<usize> = (0..effects.rows.len())
-            .filter(|&o| {
-                context.holds(
-                    &ContextState::of_row(data, effects.rows[o]),
-                    &SimConfig::default(),
-                )
-            })
-            .collect();
+        let members = effects.members(data, &context);
         let (actions, states) = (explainer.action_names(), explainer.state_names());
         out.push(match rule {
             Rule::ErrorRatio => {
@@ -477,14 +482,7 @@ pub fn threshold_claims_by_context(
     Context::of(data.experiment)
         .iter()
         .map(|context| {
-            let members: Vec<usize> = (0..effects.rows.len())
-                .filter(|&o| {
-                    context.holds(
-                        &ContextState::of_row(data, effects.rows[o]),
-                        &SimConfig::default(),
-                    )
-                })
-                .collect();
+            let members = effects.members(data, context);
             let n = members.len().max(1) as f64;
             let score: Vec<Vec<f64>> = (0..na)
                 .map(|a| {

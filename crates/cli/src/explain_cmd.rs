@@ -7,8 +7,8 @@ use crate::progress::Counter;
 use anyhow::Context;
 use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
 use causal_arm_explainer::influence::{
-    InfluenceSettings, Rule, UnionPart, agreement_effects, cai_effects, claims_by_context,
-    holdout_effects, threshold_claims_by_context, union_claims,
+    ErrorFloors, InfluenceSettings, Rule, UnionPart, agreement_effects, cai_effects,
+    claims_by_context, holdout_effects, threshold_claims_by_context, union_claims,
 };
 use causal_arm_explainer::output::write_all;
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
@@ -258,9 +258,11 @@ fn shap_and_cai_claims(
     let settings = influence_settings(args);
     let effects = explanation.effects();
     let shap = threshold_claims_by_context(explainer, data, &effects, args.threshold);
-    let shap_err = claims_by_context(explainer, data, &effects, &settings, Rule::ErrorRatio)?;
+    let floors = ErrorFloors::measure(explainer, data, &settings)?;
+    let rule = Rule::ErrorRatio(&floors);
+    let shap_err = claims_by_context(explainer, data, &effects, &settings, rule);
     let cai_effects = cai_effects(explainer, data, &settings)?;
-    let cai = claims_by_context(explainer, data, &cai_effects, &settings, Rule::ErrorRatio)?;
+    let cai = claims_by_context(explainer, data, &cai_effects, &settings, rule);
     let name = format!("{}+cai", explanation.settings.method);
     let part = |c, threshold, lower_bound| UnionPart {
         claims: c,
@@ -293,11 +295,18 @@ fn run_influence(args: &ExplainArgs) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
     let (effects, claims) = if args.method == "cai" {
         let effects = cai_effects(&explainer, &data, &settings)?;
-        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::ErrorRatio)?;
+        let floors = ErrorFloors::measure(&explainer, &data, &settings)?;
+        let claims = claims_by_context(
+            &explainer,
+            &data,
+            &effects,
+            &settings,
+            Rule::ErrorRatio(&floors),
+        );
         (effects, claims)
     } else if args.method == "holdout" {
         let effects = holdout_effects(&explainer, &data, &settings)?;
-        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::Significance)?;
+        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::Significance);
         (effects, claims)
     } else {
         let mut others = Vec::new();
@@ -307,7 +316,7 @@ fn run_influence(args: &ExplainArgs) -> anyhow::Result<()> {
         let mut all = vec![&explainer];
         all.extend(others.iter());
         let effects = agreement_effects(&all, &data, &settings)?;
-        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::Significance)?;
+        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::Significance);
         (effects, claims)
     };
     let out = args

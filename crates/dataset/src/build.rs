@@ -89,27 +89,26 @@ struct StepValues {
 }
 
 impl StepValues {
-    /// s in the experiment's feature order (see [`state_names`]), in f64.
-    fn features(&self, experiment: Experiment, out: &mut Vec<f64>) {
+    /// s in the experiment's feature order (see [`state_names`]), in f64, one value at a time.
+    fn features(&self, experiment: Experiment, mut push: impl FnMut(f64)) {
         match experiment {
             Experiment::Exp1 => {
-                out.extend(self.theta);
-                out.extend(&self.ef[..3]);
+                self.theta
+                    .iter()
+                    .chain(&self.ef[..3])
+                    .for_each(|&v| push(v));
             }
             Experiment::Exp2 => {
-                out.extend(self.object);
-                out.extend(self.colour.map(f64::from));
-                out.extend(self.theta);
-                out.extend(self.ef);
-                out.push(if self.magnet_on { 1.0 } else { 0.0 });
+                self.object.iter().for_each(|&v| push(v));
+                self.colour.iter().for_each(|&v| push(f64::from(v)));
+                self.theta.iter().chain(&self.ef).for_each(|&v| push(v));
+                push(if self.magnet_on { 1.0 } else { 0.0 });
             }
         }
     }
 
     fn state(&self, experiment: Experiment, out: &mut Vec<f32>) {
-        let mut wide = Vec::with_capacity(23);
-        self.features(experiment, &mut wide);
-        out.extend(wide.iter().map(|&v| v as f32));
+        self.features(experiment, |v| out.push(v as f32));
     }
 }
 
@@ -132,7 +131,7 @@ pub fn state_features(experiment: Experiment, messages: &StepMessages) -> Vec<f6
         magnet_on: messages.magnet.on,
     };
     let mut out = Vec::with_capacity(23);
-    values.features(experiment, &mut out);
+    values.features(experiment, |v| out.push(v));
     out
 }
 

@@ -27,23 +27,41 @@ impl ContextState {
             cube: [p.x, p.y, p.z],
         }
     }
+}
 
-    /// From row `row` of an experiment-2 dataset (s(t) and its holding flag).
-    pub fn of_row(data: &Dataset, row: usize) -> Self {
-        let s = data.state(row);
-        let names = state_names(data.experiment);
-        let at = |n: &str| {
-            names
-                .iter()
-                .position(|m| m == n)
-                .map(|i| s[i] as f64)
-                .unwrap_or(f64::NAN)
-        };
+/// Reads the [`ContextState`] of dataset rows; the feature positions are looked up once, not
+/// per row (row loops run over tens of thousands of rows).
+#[derive(Debug, Clone)]
+pub struct ContextReader {
+    mgt: Option<usize>,
+    cube: [Option<usize>; 3],
+}
+
+impl ContextReader {
+    /// A reader for rows of `experiment` (exp 1 has no magnet or cube: never held, off, NaN).
+    pub fn new(experiment: Experiment) -> Self {
+        let names = state_names(experiment);
+        let at = |n: &str| names.iter().position(|m| m == n);
         Self {
-            holding: data.holding.get(row).is_some_and(|&h| h != 0),
-            magnet_on: at("mgt") > 0.5,
+            mgt: at("mgt"),
             cube: [at("o_x"), at("o_y"), at("o_z")],
         }
+    }
+
+    /// The context state of row `row` of `data` (s(t) and its holding flag).
+    pub fn at(&self, data: &Dataset, row: usize) -> ContextState {
+        let s = data.state(row);
+        let value = |i: Option<usize>| i.map(|i| s[i] as f64).unwrap_or(f64::NAN);
+        ContextState {
+            holding: data.holding.get(row).is_some_and(|&h| h != 0),
+            magnet_on: value(self.mgt) > 0.5,
+            cube: self.cube.map(value),
+        }
+    }
+
+    /// Whether row `row` of `data` lies in `context` (the table of the default simulator).
+    pub fn holds(&self, data: &Dataset, row: usize, context: &Context) -> bool {
+        context.holds(&self.at(data, row), &SimConfig::default())
     }
 }
 

@@ -71,6 +71,15 @@ pub fn state_names(experiment: Experiment) -> Vec<String> {
     }
 }
 
+/// Which state features are Euler angles (their differences are wrapped), in state order.
+pub fn angular_features(experiment: Experiment) -> Vec<bool> {
+    let mut angular = vec![false; state_width(experiment)];
+    for g in state_groups(experiment) {
+        angular[g.start..g.start + g.len].fill(g.angular);
+    }
+    angular
+}
+
 /// Number of state features, without building the names.
 pub const fn state_width(experiment: Experiment) -> usize {
     match experiment {

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use causal_arm_datagen::{Experiment, sim_seed};
 use causal_arm_dataset::{
-    Context, ContextState, action_names, state_features, state_groups, state_names, wrap_angle,
+    Context, ContextState, action_names, angular_features, state_features, state_names, wrap_angle,
 };
 use causal_arm_sim::ros::step_messages;
 use causal_arm_sim::{Command, SimConfig, SimState, Simulator};
@@ -185,15 +185,6 @@ pub fn intervene(
         seconds: started.elapsed().as_secs_f64(),
         matrices: summarise(&setup, &found),
     })
-}
-
-/// Euler-angle features, whose differences are wrapped.
-fn angular_features(experiment: Experiment) -> Vec<bool> {
-    let mut angular = vec![false; state_names(experiment).len()];
-    for g in state_groups(experiment) {
-        angular[g.start..g.start + g.len].fill(g.angular);
-    }
-    angular
 }
 
 /// The simulator settings the bag's run used.

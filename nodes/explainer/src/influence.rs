@@ -9,9 +9,8 @@
 //!   correction (agreement of independently trained models; a holdout test with draws of
 //!   a_j given the rest).
 
-use causal_arm_dataset::{Context, ContextState, Dataset, state_groups, wrap_angle};
+use causal_arm_dataset::{Context, ContextReader, Dataset, angular_features, wrap_angle};
 use causal_arm_scoring::EdgeClaims;
-use causal_arm_sim::SimConfig;
 use causal_arm_trainer::LoadedModel;
 use rand::rngs::StdRng;
 use rand::seq::index::sample;
@@ -70,14 +69,9 @@ pub struct Effects {
 
 impl Effects {
     /// Indices of the observations whose s(t) is in `context`.
-    fn members(&self, data: &Dataset, context: &Context) -> Vec<usize> {
+    fn members(&self, data: &Dataset, reader: &ContextReader, context: &Context) -> Vec<usize> {
         (0..self.rows.len())
-            .filter(|&o| {
-                context.holds(
-                    &ContextState::of_row(data, self.rows[o]),
-                    &SimConfig::default(),
-                )
-            })
+            .filter(|&o| reader.holds(data, self.rows[o], context))
             .collect()
     }
 
@@ -120,10 +114,10 @@ impl Probe {
     fn batch(
         &mut self,
         data: &Dataset,
+        draws: &ActionDraws,
         count: usize,
         index: impl Fn(usize, usize) -> usize,
     ) -> Vec<f32> {
-        let draws = ActionDraws::new(data);
         let mut batch = Vec::with_capacity(self.rows.len() * self.na * count * self.width);
         for obs in 0..self.rows.len() {
             let x = &self.base[obs * self.width..(obs + 1) * self.width];
@@ -160,7 +154,7 @@ fn network_outputs(explainer: &Explainer, batch: &[f32], width: usize) -> Result
 /// Distinct values of action column `j` when it takes at most a few (the magnet command's
 /// −1, 0, +1): such an action is probed at every value, as the simulator's truth flips
 /// it, rather than at marginal draws that almost never leave its common value.
-pub fn discrete_values(data: &Dataset, j: usize) -> Option<Vec<f32>> {
+fn discrete_values(data: &Dataset, j: usize) -> Option<Vec<f32>> {
     distinct_values(data.rows(), |r| data.action(r)[j], 8)
 }
 
@@ -253,7 +247,7 @@ pub fn cai_effects(
 ) -> Result<Effects> {
     let mut probe = Probe::draw(data, settings)?;
     let k = settings.resamples;
-    let batch = probe.batch(data, k, |_, i| i);
+    let batch = probe.batch(data, &ActionDraws::new(data), k, |_, i| i);
     let Probe {
         rows,
         ns,
@@ -316,10 +310,7 @@ fn check(settings: &InfluenceSettings, rows: usize) -> Result<()> {
 /// changing it, whatever a network does with it.
 pub fn feature_error(model: &LoadedModel, data: &Dataset, rows: &[usize]) -> Result<Vec<f64>> {
     let ns = data.state_width();
-    let mut angular = vec![false; ns];
-    for g in state_groups(data.experiment) {
-        angular[g.start..g.start + g.len].fill(g.angular);
-    }
+    let angular = angular_features(data.experiment);
     let predicted = model
         .predict(&forward_inputs(data, rows))
         .map_err(|e| ExplainError::Options(e.to_string()))?;
@@ -349,15 +340,6 @@ pub fn feature_error(model: &LoadedModel, data: &Dataset, rows: &[usize]) -> Res
             }
         })
         .collect())
-}
-
-/// Rows of `data` in `context` among `rows`.
-pub fn rows_in_context(data: &Dataset, rows: &[usize], context: &Context) -> Vec<usize> {
-    let config = SimConfig::default();
-    rows.iter()
-        .copied()
-        .filter(|&r| context.holds(&ContextState::of_row(data, r), &config))
-        .collect()
 }
 
 /// Calibrated claims from per-observation `effects` over the observations `members`
@@ -420,11 +402,43 @@ pub fn calibrated_claims(
     }
 }
 
+/// The model's error on every state feature in every context of the data's experiment
+/// ([`feature_error`] over the context's rows of a seeded pool): the floors of
+/// [`Rule::ErrorRatio`], measured once however many effects are judged against them.
+pub struct ErrorFloors {
+    per_context: Vec<Vec<f64>>,
+}
+
+impl ErrorFloors {
+    /// Measures the floors of `explainer`'s model on up to `settings.error_rows` rows.
+    pub fn measure(
+        explainer: &Explainer,
+        data: &Dataset,
+        settings: &InfluenceSettings,
+    ) -> Result<Self> {
+        let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
+        let pool = sample(&mut rng, data.rows(), settings.error_rows.min(data.rows())).into_vec();
+        let reader = ContextReader::new(data.experiment);
+        let per_context = Context::of(data.experiment)
+            .iter()
+            .map(|context| {
+                let rows: Vec<usize> = pool
+                    .iter()
+                    .copied()
+                    .filter(|&r| reader.holds(data, r, context))
+                    .collect();
+                feature_error(explainer.model(), data, &rows)
+            })
+            .collect::<Result<_>>()?;
+        Ok(Self { per_context })
+    }
+}
+
 /// How per-observation effects become verdicts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Rule {
+#[derive(Clone, Copy)]
+pub enum Rule<'a> {
     /// Magnitudes (CAI spread, |SHAP|) against κ × the model's error ([`calibrated_claims`]).
-    ErrorRatio,
+    ErrorRatio(&'a ErrorFloors),
     /// Signed agreement of independent models, tested against 0 ([`significance_claims`]).
     Significance,
 }
@@ -438,34 +452,31 @@ pub fn claims_by_context(
     effects: &Effects,
     settings: &InfluenceSettings,
     rule: Rule,
-) -> Result<Vec<EdgeClaims>> {
-    let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
-    let error_pool = sample(&mut rng, data.rows(), settings.error_rows.min(data.rows())).into_vec();
+) -> Vec<EdgeClaims> {
     let scale = crate::change_scale(data);
-    let mut out = Vec::new();
-    for context in Context::of(data.experiment) {
-        let members = effects.members(data, &context);
-        let (actions, states) = (explainer.action_names(), explainer.state_names());
-        out.push(match rule {
-            Rule::ErrorRatio => {
-                let error_rows = rows_in_context(data, &error_pool, &context);
-                let error = feature_error(explainer.model(), data, &error_rows)?;
-                calibrated_claims(
+    let reader = ContextReader::new(data.experiment);
+    let (actions, states) = (explainer.action_names(), explainer.state_names());
+    Context::of(data.experiment)
+        .iter()
+        .enumerate()
+        .map(|(c, context)| {
+            let members = effects.members(data, &reader, context);
+            match rule {
+                Rule::ErrorRatio(floors) => calibrated_claims(
                     effects,
                     &members,
-                    &error,
+                    &floors.per_context[c],
                     settings,
                     context.name,
                     actions,
                     states,
-                )
+                ),
+                Rule::Significance => {
+                    significance_claims(effects, &members, &scale, context.name, actions, states)
+                }
             }
-            Rule::Significance => {
-                significance_claims(effects, &members, &scale, context.name, actions, states)
-            }
-        });
-    }
-    Ok(out)
+        })
+        .collect()
 }
 
 /// Today's relevance rule ([`crate::report`]) in every context: score = mean effect over the
@@ -478,11 +489,12 @@ pub fn threshold_claims_by_context(
     threshold: f64,
 ) -> Vec<EdgeClaims> {
     let scale = crate::change_scale(data);
+    let reader = ContextReader::new(data.experiment);
     let (na, ns) = (effects.n_action, effects.n_state);
     Context::of(data.experiment)
         .iter()
         .map(|context| {
-            let members = effects.members(data, context);
+            let members = effects.members(data, &reader, context);
             let n = members.len().max(1) as f64;
             let score: Vec<Vec<f64>> = (0..na)
                 .map(|a| {
@@ -596,7 +608,7 @@ pub fn union_claims(method: &str, context: &str, parts: &[UnionPart]) -> Option<
 /// upper tail), by bisection on the complementary error function.
 fn z_critical(alpha: f64, tests: usize) -> f64 {
     let tail = alpha / tests.max(1) as f64;
-    let upper_tail = |z: f64| 0.5 * erfc(z / std::f64::consts::SQRT_2);
+    let upper_tail = |z: f64| 0.5 * libm::erfc(z / std::f64::consts::SQRT_2);
     let (mut lo, mut hi) = (0.0, 40.0);
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
@@ -607,23 +619,6 @@ fn z_critical(alpha: f64, tests: usize) -> f64 {
         }
     }
     0.5 * (lo + hi)
-}
-
-/// erfc(x) for x ≥ 0 (Numerical Recipes' Chebyshev fit, relative error < 1.2e-7).
-fn erfc(x: f64) -> f64 {
-    let t = 1.0 / (1.0 + 0.5 * x.abs());
-    let y = t
-        * (-x * x - 1.265_512_23
-            + t * (1.000_023_68
-                + t * (0.374_091_96
-                    + t * (0.096_784_18
-                        + t * (-0.186_288_06
-                            + t * (0.278_868_07
-                                + t * (-1.135_203_98
-                                    + t * (1.488_515_87
-                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
-            .exp();
-    if x >= 0.0 { y } else { 2.0 - y }
 }
 
 /// Reproducible influence across independently trained forward models (seeds or folds):
@@ -646,10 +641,14 @@ pub fn agreement_effects(
     }
     let mut probe = Probe::draw(data, settings)?;
     let k = settings.resamples;
-    let discrete = ActionDraws::new(data).discrete;
+    let draws = ActionDraws::new(data);
     // Pairs (v, v′) of distinct values for a discrete action: all ordered pairs in turn.
-    let batch = probe.batch(data, 2 * k, |j, i| {
-        if discrete[j].is_some() { i + i / 2 } else { i }
+    let batch = probe.batch(data, &draws, 2 * k, |j, i| {
+        if draws.discrete[j].is_some() {
+            i + i / 2
+        } else {
+            i
+        }
     });
     let Probe {
         rows,
@@ -866,10 +865,7 @@ pub fn holdout_effects(
         }
     }
     let predicted = network_outputs(explainer, &batch, width)?;
-    let mut angular = vec![false; ns];
-    for g in state_groups(data.experiment) {
-        angular[g.start..g.start + g.len].fill(g.angular);
-    }
+    let angular = angular_features(data.experiment);
     let per_obs = (1 + na * k) * ns;
     let mut values = vec![0.0; rows.len() * na * ns];
     for (obs, &r) in rows.iter().enumerate() {
@@ -900,8 +896,6 @@ mod tests {
 
     #[test]
     fn normal_tail_and_bonferroni_quantiles() {
-        assert!((erfc(0.0) - 1.0).abs() < 1e-7);
-        assert!((erfc(1.0) - 0.157_299_207).abs() < 1e-7);
         assert!((z_critical(0.05, 1) - 1.644_854).abs() < 1e-4);
         // One-sided 0.05 / 184: z = 3.4584 (the exp2 grid of 8 × 23 pairs).
         assert!((z_critical(0.05, 184) - 3.458_36).abs() < 1e-3);

@@ -440,10 +440,7 @@ impl Picks {
 /// episode) has scale 0 and no action can be shown to affect it.
 pub fn change_scale(data: &Dataset) -> Vec<f64> {
     let w = data.state_width();
-    let mut angular = vec![false; w];
-    for g in causal_arm_dataset::state_groups(data.experiment) {
-        angular[g.start..g.start + g.len].fill(g.angular);
-    }
+    let angular = causal_arm_dataset::angular_features(data.experiment);
     let delta = |r: usize| {
         data.next_state(r)
             .iter()

@@ -15,7 +15,7 @@ use causal_arm_explainer::report::DEFAULT_THRESHOLD;
 use causal_arm_explainer::{BackgroundKind, Explainer, Method, Settings, relevance};
 use causal_arm_scoring::EdgeClaims;
 use causal_arm_trainer::load_model;
-use causal_arm_truth::{score_claims, score_table};
+use causal_arm_truth::{Truth, check_names, score_claims, score_table};
 use clap::Args;
 
 /// Arguments of `causal-arm explain`.
@@ -121,10 +121,19 @@ fn settings(args: &ExplainArgs) -> anyhow::Result<Settings> {
     Ok(settings)
 }
 
-/// The model, its explainer and the data its observations come from.
-fn load(args: &ExplainArgs) -> anyhow::Result<(Explainer, Dataset)> {
+/// The model, its explainer and the data its observations come from; a `truth` that
+/// cannot score this model's claims is refused before any of them are computed.
+fn load(args: &ExplainArgs, truth: Option<&Truth>) -> anyhow::Result<(Explainer, Dataset)> {
     let model = load_model(&args.model, &args.name)?;
     let explainer = Explainer::new(model)?;
+    if let Some(truth) = truth {
+        check_names(
+            truth,
+            &args.method,
+            explainer.action_names(),
+            explainer.state_names(),
+        )?;
+    }
     let action_text = args
         .action
         .clone()
@@ -153,15 +162,17 @@ fn influence_settings(args: &ExplainArgs) -> InfluenceSettings {
 
 /// Runs `causal-arm explain`.
 pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
-    if let Some(truth) = &args.truth {
-        // A bad truth file is refused before minutes of attribution.
-        causal_arm_truth::load(truth)?;
-    }
+    // A bad truth file is refused before minutes of attribution.
+    let truth = args
+        .truth
+        .as_deref()
+        .map(causal_arm_truth::load)
+        .transpose()?;
     if ["cai", "agreement", "holdout"].contains(&args.method.as_str()) {
-        return run_influence(args);
+        return run_influence(args, truth.as_ref());
     }
     let settings = settings(args)?;
-    let (explainer, data) = load(args)?;
+    let (explainer, data) = load(args, truth.as_ref())?;
     let mut counter = Counter::new(
         settings.samples as u64,
         &format!("{} SHAP", settings.method),
@@ -178,7 +189,7 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
     let written = write_all(&out, &explanation, &report, !args.no_pair_plots)
         .with_context(|| format!("cannot write the explanation into {}", out.display()))?;
     let claims = shap_and_cai_claims(args, &explainer, &data, &explanation)?;
-    finish_claims(args, &out, &claims)?;
+    finish_claims(args, &out, &claims, truth.as_ref())?;
 
     println!(
         "{} {} SHAP of {}/{}: {} observations × {} background rows in {:.2} s (efficiency error {:.1e})",
@@ -289,8 +300,8 @@ fn shap_and_cai_claims(
 
 /// `causal-arm explain --method cai|agreement`: influence of every action on the forward
 /// model(s), with verdicts by the method's rule.
-fn run_influence(args: &ExplainArgs) -> anyhow::Result<()> {
-    let (explainer, data) = load(args)?;
+fn run_influence(args: &ExplainArgs, truth: Option<&Truth>) -> anyhow::Result<()> {
+    let (explainer, data) = load(args, truth)?;
     let settings = influence_settings(args);
     let started = std::time::Instant::now();
     let (effects, claims) = if args.method == "cai" {
@@ -333,32 +344,35 @@ fn run_influence(args: &ExplainArgs) -> anyhow::Result<()> {
         settings.resamples,
         started.elapsed().as_secs_f64()
     );
-    finish_claims(args, &out, &claims)
+    finish_claims(args, &out, &claims, truth)
 }
 
 /// Writes `claims.json`, prints what the default claims say and, with `--truth`, scores
 /// every claim set against it (`scores.json`).
-fn finish_claims(args: &ExplainArgs, out: &Path, claims: &[EdgeClaims]) -> anyhow::Result<()> {
+fn finish_claims(
+    args: &ExplainArgs,
+    out: &Path,
+    claims: &[EdgeClaims],
+    truth: Option<&Truth>,
+) -> anyhow::Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let path = out.join("claims.json");
     std::fs::write(&path, serde_json::to_string_pretty(claims)?)
         .with_context(|| format!("cannot write {}", path.display()))?;
     eprintln!("wrote {}", path.display());
-    if let Some(calibrated) = claims
-        .iter()
-        .find(|c| c.interval.is_some() && c.context == "all")
-    {
-        for (a, action) in calibrated.action_names.iter().enumerate() {
-            let driven: Vec<&str> = calibrated
+    // The first claim set of a run is its default.
+    if let Some(headline) = claims.iter().find(|c| c.context == "all") {
+        for (a, action) in headline.action_names.iter().enumerate() {
+            let driven: Vec<&str> = headline
                 .state_names
                 .iter()
                 .enumerate()
-                .filter(|&(k, _)| calibrated.drives[a][k])
+                .filter(|&(k, _)| headline.drives[a][k])
                 .map(|(_, s)| s.as_str())
                 .collect();
             println!(
                 "{action:<6} drives ({}) {}",
-                calibrated.method,
+                headline.method,
                 driven.join(", ")
             );
         }
@@ -385,13 +399,12 @@ fn finish_claims(args: &ExplainArgs, out: &Path, claims: &[EdgeClaims]) -> anyho
         )?;
         eprintln!("wrote {}.png and {}.svg", stem.display(), stem.display());
     }
-    let Some(truth_path) = &args.truth else {
+    let (Some(truth), Some(truth_path)) = (truth, &args.truth) else {
         return Ok(());
     };
-    let truth = causal_arm_truth::load(truth_path)?;
     let mut rows = Vec::new();
     for c in claims {
-        rows.extend(score_claims(&truth, c)?);
+        rows.extend(score_claims(truth, c)?);
     }
     println!(
         "scored against {} ({} states; blocks over all states, contexts over all pairs; every row in scores.json):",

@@ -22,6 +22,27 @@ pub struct ScoreRow {
     pub scores: Scores,
 }
 
+/// Refuses claims by `method` about `actions` × `states` that `truth` cannot score: a
+/// truth of the other experiment, or of other feature names. Callers check before
+/// computing claims, so a wrong truth file costs no attribution time.
+pub fn check_names(
+    truth: &Truth,
+    method: &str,
+    actions: &[String],
+    states: &[String],
+) -> Result<(), TruthError> {
+    if states == truth.state_names && actions == truth.action_names {
+        return Ok(());
+    }
+    Err(TruthError::File {
+        path: truth.bag.clone().into(),
+        problem: format!(
+            "the truth ({}) has actions {:?} and state features {:?}; the {method} claims have actions {actions:?} and state features {states:?}",
+            truth.experiment, truth.action_names, truth.state_names
+        ),
+    })
+}
+
 /// Scores `claims` against the matching matrix of `truth`: one row over all pairs, then
 /// one per block the experiment has. Refuses claims whose names or context the truth
 /// does not share (a truth of the other experiment, other feature names).
@@ -30,17 +51,12 @@ pub fn score_claims(truth: &Truth, claims: &EdgeClaims) -> Result<Vec<ScoreRow>,
         path: truth.bag.clone().into(),
         problem,
     };
-    if claims.state_names != truth.state_names || claims.action_names != truth.action_names {
-        return Err(mismatch(format!(
-            "the truth ({}) has actions {:?} and state features {:?}; the {} claims have actions {:?} and state features {:?}",
-            truth.experiment,
-            truth.action_names,
-            truth.state_names,
-            claims.method,
-            claims.action_names,
-            claims.state_names
-        )));
-    }
+    check_names(
+        truth,
+        &claims.method,
+        &claims.action_names,
+        &claims.state_names,
+    )?;
     claims.check_shape().map_err(mismatch)?;
     let m = truth
         .matrix(&claims.context, claims.horizon)

@@ -49,7 +49,6 @@ impl Setup<'_> {
         first: &Command,
     ) -> Result<Vec<f64>, TruthError> {
         let mut sim = snapshot.clone();
-        let model = snapshot.model().clone();
         let mut out = Vec::with_capacity(self.plan.horizon * self.n_state);
         for h in 0..self.plan.horizon {
             let command = if h == 0 {
@@ -60,7 +59,7 @@ impl Setup<'_> {
             let state = sim.step(command)?;
             out.extend(state_features(
                 self.trace.experiment,
-                &step_messages(&state, &model),
+                &step_messages(&state, sim.model()),
             ));
         }
         Ok(out)
@@ -108,7 +107,11 @@ impl Setup<'_> {
                     magnet,
                     ..recorded.clone()
                 };
-                record(7, &self.rollout(&snapshot, index, &command)?);
+                // a_mgt is the last action, after the seven joint deltas.
+                record(
+                    self.n_action - 1,
+                    &self.rollout(&snapshot, index, &command)?,
+                );
             }
         }
         let state = snapshot.state();

@@ -33,7 +33,7 @@ def graph(experiment: str, default_out: str) -> LaunchDescription:
         "seed": "0",
         "sigma": "0.35",
         "velocity_scale": "1.0",
-        "move_while_switching": "false",
+        "move_while_switching": "true",
         "out": default_out,
         "overwrite": "false",
     }

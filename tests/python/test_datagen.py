@@ -171,7 +171,7 @@ def _canonical(bag):
     return {t: [(ts, norm(m)) for ts, m in msgs] for t, msgs in topics.items()}
 
 
-@pytest.mark.parametrize("flags", [[], ["--move-while-switching"]])
+@pytest.mark.parametrize("flags", [[], ["--move-while-switching", "false"]])
 def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, private_netns, flags):
     env = {"ROS_DOMAIN_ID": "17", "RUST_LOG": "warn"}
     dds = tmp_path / "dds"

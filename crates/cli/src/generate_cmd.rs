@@ -39,9 +39,11 @@ pub struct GenerateArgs {
     /// faster, see docs/RESULTS.md).
     #[arg(long, default_value_t = 1.0)]
     velocity_scale: f64,
-    /// Exp 2: move while switching the magnet instead of holding the arm still, so the
-    /// data can show that the magnet does not move the joints (see docs/RESULTS.md).
-    #[arg(long)]
+    /// Exp 2: move while switching the magnet (default), so the data can show that the
+    /// magnet does not move the joints; `false` holds the arm still at every switch, as
+    /// bags made before this default did (see docs/RESULTS.md).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, num_args = 0..=1,
+          default_missing_value = "true", value_name = "BOOL")]
     pub move_while_switching: bool,
 }
 

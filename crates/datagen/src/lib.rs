@@ -145,7 +145,8 @@ pub mod bag_keys {
     pub const SIGMA: &str = "causal_arm.sigma";
     /// Scale of the URDF joint velocity limits.
     pub const VELOCITY_SCALE: &str = "causal_arm.velocity_scale";
-    /// Exp 2 babbler moves while switching the magnet (present only when it does).
+    /// Exp 2 babbler moves while switching the magnet (`true`/`false`; bags written before
+    /// it became the default lack the key and held the arm still).
     pub const MOVE_WHILE_SWITCHING: &str = "causal_arm.move_while_switching";
 }
 
@@ -172,8 +173,11 @@ impl GenerateOptions {
         if self.experiment == Experiment::Exp1 {
             data.insert(bag_keys::SIGMA.to_owned(), self.exp1.sigma.to_string());
         }
-        if self.experiment == Experiment::Exp2 && self.exp2.move_while_switching {
-            data.insert(bag_keys::MOVE_WHILE_SWITCHING.to_owned(), "true".into());
+        if self.experiment == Experiment::Exp2 {
+            data.insert(
+                bag_keys::MOVE_WHILE_SWITCHING.to_owned(),
+                self.exp2.move_while_switching.to_string(),
+            );
         }
         data
     }

@@ -106,8 +106,9 @@ pub struct Exp2Config {
     /// and the release step moves a little (spread `babble_sigma` / 3) instead of holding
     /// the arm still. Holding still makes a magnet command always coincide with a resting
     /// arm, so no model can learn from the data that the magnet does not move the joints
-    /// (docs/RESULTS.md, "Causal claims against the simulator"). Off by default: the
-    /// paper-profile figures were measured without it.
+    /// (docs/RESULTS.md, "Causal claims against the simulator"). On by default, as in the
+    /// paper's myGym, where the magnet command is one more component of an action whose
+    /// joint part is babbled at the same step.
     pub move_while_switching: bool,
     /// Spread of the manoeuvres while holding, rad.
     pub manoeuvre_sigma: f64,
@@ -143,7 +144,7 @@ impl Default for Exp2Config {
             switch_on_probability: 0.05,
             spurious_off_probability: 0.0,
             babble_sigma: 0.15,
-            move_while_switching: false,
+            move_while_switching: true,
             manoeuvre_sigma: 0.1,
             manoeuvre_steps: (20, 80),
             min_babble_steps: 10,

@@ -49,8 +49,8 @@ pub fn run_param_specs() -> Vec<ParamSpec> {
         .with_range(0.01, 1000.0),
         ParamSpec::new(
             "move_while_switching",
-            ParamValue::Bool(false),
-            "exp2: move while switching the magnet instead of holding the arm still",
+            ParamValue::Bool(true),
+            "exp2: move while switching the magnet (false: hold the arm still at every switch)",
         ),
     ]
 }

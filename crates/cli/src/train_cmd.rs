@@ -9,6 +9,7 @@ use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Experiment, load_bag
 use causal_arm_trainer::fit::{Progress, ProgressLog};
 use causal_arm_trainer::job::train_and_save;
 use causal_arm_trainer::problems::FmTarget;
+use causal_arm_trainer::structure::FoundGraph;
 use causal_arm_trainer::{Figure, LrSchedule, ModelKind, Profile, TrainOptions};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -19,7 +20,8 @@ pub struct TrainArgs {
     /// Bag directory (repeat for several bags of one experiment).
     #[arg(long = "bag", required = true)]
     bags: Vec<PathBuf>,
-    /// fm, im-mono, im-pre, ablation, or all (every model of the bag's experiment).
+    /// fm, im-mono, im-pre, ablation, fm-factored (needs --graph), or all (every model of
+    /// the bag's experiment).
     #[arg(long, default_value = "all")]
     model: String,
     /// Epoch budgets: paper (60-4,000 epochs) or quick.
@@ -73,6 +75,14 @@ pub struct TrainArgs {
     /// Decode the bags even if a cached dataset exists, and do not cache.
     #[arg(long)]
     no_cache: bool,
+    /// Causal graph found by `causal-arm explain` (its claims.json; the default claims are
+    /// used): the state features no action drives are left out of the FM and IM, and
+    /// fm-factored gives each FM head only the actions that drive it.
+    #[arg(long)]
+    graph: Option<PathBuf>,
+    /// Hidden layer widths of each head network of fm-factored.
+    #[arg(long, value_delimiter = ',', default_value = "128,128,128")]
+    factored_hidden: Vec<usize>,
     /// Output directory for model files and metrics.json.
     #[arg(long)]
     out: PathBuf,
@@ -158,10 +168,12 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         || args.im_hidden.is_empty()
         || args.fm_hidden.contains(&0)
         || args.im_hidden.contains(&0)
+        || args.factored_hidden.is_empty()
+        || args.factored_hidden.contains(&0)
     {
         bail!("hidden layer widths must be positive, e.g. --fm-hidden 256,256,256");
     }
-    let options = TrainOptions {
+    let mut options = TrainOptions {
         profile,
         epochs: args.epochs,
         folds: args.folds,
@@ -175,6 +187,8 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         max_folds: args.max_folds,
         stop: None,
         eval_every: args.eval_every,
+        graph: None,
+        factored_hidden: args.factored_hidden.clone(),
     };
 
     let start = Instant::now();
@@ -196,6 +210,19 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         data.action_width(),
         start.elapsed().as_secs_f64()
     );
+    if let Some(path) = &args.graph {
+        let graph = FoundGraph::load(path, data.experiment)?;
+        eprintln!(
+            "graph: {}; left out as driven by no action: {:?}",
+            graph.source,
+            graph.unaffected()
+        );
+        options.graph = Some(graph);
+    } else if requested == Some(ModelKind::FmFactored) {
+        bail!(
+            "--model fm-factored needs --graph CLAIMS_JSON (the claims.json of `causal-arm explain`)"
+        );
+    }
     let kinds = match requested {
         Some(kind) => vec![kind],
         None => ModelKind::all_for(data.experiment),

@@ -71,6 +71,12 @@ impl MlpSpec {
         widths.push(self.outputs());
         widths.windows(2).map(|w| w[0] * w[1]).sum()
     }
+
+    /// Trainable weights and biases: what a smaller (reduced or factored) model saves.
+    pub fn parameters(&self) -> usize {
+        let biases: usize = self.hidden.iter().sum::<usize>() + self.outputs();
+        self.macs_per_sample() + biases
+    }
 }
 
 /// One affine layer, weights `[out, in]` as PyTorch and numpy readers expect.

@@ -121,6 +121,9 @@ pub fn train_and_save(
                 "fm_hidden": options.fm_hidden,
                 "im_hidden": options.im_hidden,
                 "seed": options.seed,
+                "graph": options.graph.as_ref().map(|g| g.source.clone()),
+                "left_out": options.graph.as_ref().map(|g| g.unaffected()),
+                "factored_hidden": (kind == ModelKind::FmFactored).then_some(&options.factored_hidden),
             },
         });
         saved.runs.extend(report.runs);

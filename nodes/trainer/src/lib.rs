@@ -11,6 +11,7 @@ pub mod mental;
 pub mod model_file;
 pub mod problems;
 pub mod serve;
+pub mod structure;
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -77,6 +78,9 @@ pub enum ModelKind {
     ImPre,
     /// The base IM fed θ(t+1) = 0 or θ(t+1) sampled from the dataset (exp 1).
     Ablation,
+    /// Forward model factored by a found causal graph: one network per head, fed only the
+    /// head's parents ([`structure::head_problem`]). Needs [`TrainOptions::graph`].
+    FmFactored,
 }
 
 impl ModelKind {
@@ -95,6 +99,7 @@ impl ModelKind {
             Self::ImMono => "im-mono",
             Self::ImPre => "im-pre",
             Self::Ablation => "ablation",
+            Self::FmFactored => "fm-factored",
         }
     }
 }
@@ -102,12 +107,20 @@ impl ModelKind {
 impl std::str::FromStr for ModelKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        [Self::Fm, Self::ImMono, Self::ImPre, Self::Ablation]
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| {
-                format!("unknown model {s:?}: expected fm, im-mono, im-pre, ablation or all")
-            })
+        [
+            Self::Fm,
+            Self::ImMono,
+            Self::ImPre,
+            Self::Ablation,
+            Self::FmFactored,
+        ]
+        .into_iter()
+        .find(|k| k.name() == s)
+        .ok_or_else(|| {
+            format!(
+                "unknown model {s:?}: expected fm, im-mono, im-pre, ablation, fm-factored or all"
+            )
+        })
     }
 }
 
@@ -188,6 +201,11 @@ pub struct TrainOptions {
     pub stop: Option<Arc<AtomicBool>>,
     /// Measure the held-out MAE every `n` epochs (a learning curve in each [`RunRecord`]).
     pub eval_every: Option<usize>,
+    /// A causal graph found by the explainer: the state features no action drives are left
+    /// out of the FM and IM, and `fm-factored` gives each head only its parents.
+    pub graph: Option<structure::FoundGraph>,
+    /// Hidden layers of each network of `fm-factored`.
+    pub factored_hidden: Vec<usize>,
 }
 
 impl Default for TrainOptions {
@@ -206,6 +224,8 @@ impl Default for TrainOptions {
             max_folds: None,
             stop: None,
             eval_every: None,
+            graph: None,
+            factored_hidden: vec![128; 3],
         }
     }
 }
@@ -223,6 +243,17 @@ impl TrainOptions {
                 schedule: self.lr_schedule,
             },
             epochs: self.epochs.unwrap_or(epochs),
+        }
+    }
+
+    /// `problem` without the state features the graph finds unaffected (unchanged without
+    /// a graph).
+    fn reduced(&self, problem: Problem) -> Result<Problem, TrainError> {
+        match &self.graph {
+            Some(graph) if !graph.unaffected().is_empty() => {
+                structure::reduce(&problem, &graph.unaffected())
+            }
+            _ => Ok(problem),
         }
     }
 
@@ -325,6 +356,9 @@ pub struct RunRecord {
     pub rows: usize,
     /// Seconds spent training.
     pub wall_s: f64,
+    /// Trainable weights and biases of the network.
+    #[serde(default)]
+    pub parameters: usize,
     /// Held-out MAE per head during training (with `eval_every`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub curve: Vec<CurvePoint>,
@@ -512,6 +546,7 @@ pub fn cross_validate(
             epochs: settings.epochs,
             rows: train.len(),
             wall_s: wall.as_secs_f64(),
+            parameters: model.mlp.spec().parameters(),
             curve,
         });
         Ok(model)
@@ -532,7 +567,7 @@ pub fn cross_validate(
         };
         match kind {
             ModelKind::Fm => {
-                let problem = problems::forward_model(data, options.fm_target);
+                let problem = options.reduced(problems::forward_model(data, options.fm_target))?;
                 let settings = options.settings("fm", exp, &options.fm_hidden);
                 let model = timed_fit(
                     &problem,
@@ -553,7 +588,7 @@ pub fn cross_validate(
                 }
             }
             ModelKind::ImMono => {
-                let problem = problems::inverse_model(data);
+                let problem = options.reduced(problems::inverse_model(data))?;
                 let settings = options.settings("im_mono", exp, &options.im_hidden);
                 let model = timed_fit(
                     &problem,
@@ -571,6 +606,35 @@ pub fn cross_validate(
                         ProblemInfo::from(&problem),
                         settings,
                     ));
+                }
+            }
+            ModelKind::FmFactored => {
+                let Some(graph) = &options.graph else {
+                    return Err(TrainError::Options(
+                        "fm-factored needs the causal graph found by `causal-arm explain` (--graph CLAIMS_JSON)".into(),
+                    ));
+                };
+                let full = options.reduced(problems::forward_model(data, options.fm_target))?;
+                let settings = options.settings("fm", exp, &options.factored_hidden);
+                for head in &full.heads {
+                    let problem = structure::head_problem(&full, head, graph)?;
+                    let model = timed_fit(
+                        &problem,
+                        &train,
+                        test,
+                        &settings,
+                        format!("fm-factored {} {tag}", head.name),
+                        progress,
+                    )?;
+                    evaluate(&problem, &model, "fm", &mut acc)?;
+                    if f == 0 {
+                        models.push((
+                            format!("fm-factored-{}", head.name),
+                            model,
+                            ProblemInfo::from(&problem),
+                            settings.clone(),
+                        ));
+                    }
                 }
             }
             ModelKind::ImPre | ModelKind::Ablation => {

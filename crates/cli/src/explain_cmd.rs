@@ -7,8 +7,8 @@ use crate::progress::Counter;
 use anyhow::Context;
 use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
 use causal_arm_explainer::influence::{
-    ErrorFloors, InfluenceSettings, Rule, UnionPart, agreement_effects, cai_effects,
-    claims_by_context, holdout_effects, threshold_claims_by_context, union_claims,
+    ErrorFloors, InfluenceSettings, Rule, agreement_effects, cai_effects, claims_by_context,
+    holdout_effects,
 };
 use causal_arm_explainer::output::write_all;
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
@@ -257,45 +257,21 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The claims of a SHAP run, the default first: SHAP by today's rule (every context) united
-/// with CAI by its error floor, per context (`<method>+cai`; in context `all`, SHAP of any
-/// context counts); then SHAP by today's rule, SHAP against the model's error, and CAI alone.
+/// The claims of a SHAP run, the default (`<method>+cai`) first: one piece of code with the
+/// explainer node ([`causal_arm_explainer::verdicts::shap_and_cai_claims`]).
 fn shap_and_cai_claims(
     args: &ExplainArgs,
     explainer: &Explainer,
     data: &Dataset,
     explanation: &causal_arm_explainer::Explanation,
 ) -> anyhow::Result<Vec<EdgeClaims>> {
-    let settings = influence_settings(args);
-    let effects = explanation.effects();
-    let shap = threshold_claims_by_context(explainer, data, &effects, args.threshold);
-    let floors = ErrorFloors::measure(explainer, data, &settings)?;
-    let rule = Rule::ErrorRatio(&floors);
-    let shap_err = claims_by_context(explainer, data, &effects, &settings, rule);
-    let cai_effects = cai_effects(explainer, data, &settings)?;
-    let cai = claims_by_context(explainer, data, &cai_effects, &settings, rule);
-    let name = format!("{}+cai", explanation.settings.method);
-    let part = |c, threshold, lower_bound| UnionPart {
-        claims: c,
-        threshold,
-        lower_bound,
-    };
-    let mut out = Vec::new();
-    for (context, cai_context) in shap.iter().zip(&cai) {
-        let mut parts: Vec<UnionPart> = if context.context == "all" {
-            shap.iter()
-                .map(|c| part(c, args.threshold, false))
-                .collect()
-        } else {
-            vec![part(context, args.threshold, false)]
-        };
-        parts.push(part(cai_context, settings.kappa, true));
-        out.extend(union_claims(&name, &context.context, &parts));
-    }
-    out.extend(shap);
-    out.extend(shap_err);
-    out.extend(cai);
-    Ok(out)
+    Ok(causal_arm_explainer::verdicts::shap_and_cai_claims(
+        explainer,
+        data,
+        explanation,
+        args.threshold,
+        &influence_settings(args),
+    )?)
 }
 
 /// `causal-arm explain --method cai|agreement`: influence of every action on the forward

@@ -547,10 +547,39 @@ impl UnionPart<'_> {
         };
         evidence / self.threshold
     }
+
+    /// The part's 95 % interval of edge (a, k) in the units of its margin (interval /
+    /// threshold), if its claims carry intervals.
+    fn margin_interval(&self, a: usize, k: usize) -> Option<[f64; 2]> {
+        let [lo, hi] = self.claims.interval.as_ref()?[a][k];
+        Some([lo / self.threshold, hi / self.threshold])
+    }
+}
+
+/// Per edge, the margin interval of the part with the largest margin (the part that decides
+/// the union's score); `None` unless every deciding part carries an interval.
+fn union_interval(parts: &[UnionPart], na: usize, ns: usize) -> Option<Vec<Vec<[f64; 2]>>> {
+    (0..na)
+        .map(|a| {
+            (0..ns)
+                .map(|k| {
+                    let best = parts.iter().reduce(|p, q| {
+                        if q.margin(a, k) > p.margin(a, k) {
+                            q
+                        } else {
+                            p
+                        }
+                    })?;
+                    best.margin_interval(a, k)
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// Claims an edge wherever some part does; the score is the largest margin (evidence /
-/// threshold), so `score ≥ 1` is the verdict. Attributions of the actions as taken (SHAP)
+/// threshold), so `score ≥ 1` is the verdict, and the interval that part's interval in the
+/// same units (for a lower-bound part the score is the interval's lower end). Attributions of the actions as taken (SHAP)
 /// miss effects an action has only at values it rarely takes (the magnet's switch-off
 /// drops a held cube, yet a_mgt is almost always "keep"); influence under probing (CAI)
 /// sees those but misses small contributions its error floor hides: the union keeps both
@@ -600,7 +629,7 @@ pub fn union_claims(method: &str, context: &str, parts: &[UnionPart]) -> Option<
             })
             .collect(),
         score,
-        interval: None,
+        interval: union_interval(parts, na, ns),
     })
 }
 
@@ -937,6 +966,8 @@ mod tests {
         let u = union_claims("m+c", "all", &parts).unwrap();
         assert!(u.drives[0][0]);
         assert!((u.score[0][0] - 1.5).abs() < 1e-12, "{}", u.score[0][0]);
+        // The deciding part (CAI, margin 1.5) gives the interval, in margin units.
+        assert_eq!(u.interval.as_ref().unwrap()[0][0], [1.5, 2.0]);
         let neither = claims(1.0, 0.5, false);
         let u = union_claims(
             "m+c",

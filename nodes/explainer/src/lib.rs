@@ -13,6 +13,7 @@ pub mod influence;
 pub mod output;
 pub mod report;
 pub mod serve;
+pub mod verdicts;
 
 use std::time::Instant;
 

@@ -57,7 +57,7 @@ tests/netns-run bash -c '
   export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-7}" RUST_LOG="${RUST_LOG:-warn}"
   target/release/causal_arm_explainer --ros-args -p model_dir:=models/quick_exp2 -p bag:=bags/quick_exp2 & node=$!
   target/release/causal-arm topic echo /explainer/relevance --type causal_arm_msgs/msg/Relevance \
-    --qos latched --count 1 --timeout 60 > models/quick_exp2/relevance_topic.json
+    --qos latched --count 1 --timeout 180 > models/quick_exp2/relevance_topic.json
   status=$?; kill -INT $node; wait $node
   python3 -c "import json; m = json.load(open(\"models/quick_exp2/relevance_topic.json\")); print(\"not affected by any action:\", [s for s, a in zip(m[\"state_names\"], m[\"affected\"]) if not a])"
   exit $status'

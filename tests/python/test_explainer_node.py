@@ -7,15 +7,45 @@ import json
 import os
 import subprocess
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl import types as t
 
 import ros_idl as idl
 from conftest import bag_and_forward_model, node_process
 from model_numpy import load_safetensors, numpy_predict
 
 DOMAIN = 43
+# Observations of the node's report (Kernel SHAP and CAI): a few seconds on this bag.
+NODE_SAMPLES = 40
+
+
+@dataclass
+class RelevanceV2(IdlStruct, typename="causal_arm_msgs::msg::dds_::Relevance_"):
+    """msg/Relevance.msg with the appended calibrated verdicts (ros_idl.Relevance is the
+    layout before them: an old reader)."""
+
+    header: idl.Header = field(default_factory=idl.Header)
+    experiment: str = ""
+    method: str = ""
+    observations: t.uint32 = 0
+    background: t.uint32 = 0
+    action_names: t.sequence[str] = field(default_factory=list)
+    state_names: t.sequence[str] = field(default_factory=list)
+    mean_abs_shap: t.sequence[t.float64] = field(default_factory=list)
+    state_scale: t.sequence[t.float64] = field(default_factory=list)
+    affected: t.sequence[bool] = field(default_factory=list)
+    threshold: t.float64 = 0.0
+    rule: str = ""
+    decision_method: str = ""
+    drives: t.sequence[bool] = field(default_factory=list)
+    score: t.sequence[t.float64] = field(default_factory=list)
+    interval_lower: t.sequence[t.float64] = field(default_factory=list)
+    interval_upper: t.sequence[t.float64] = field(default_factory=list)
+    decision_rule: str = ""
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +79,11 @@ def test_cli_writes_every_file_and_the_colour_verdict(exp2):
         assert verdicts[f"theta{j}"]["strongest_action"] == f"a{j}"
     csv = (out / "relevance.csv").read_text().splitlines()
     assert csv[0].startswith("state,verdict,score")
+    # The verdicts are the run's default claims, SHAP united with CAI, as claims.json's first.
+    assert report["decision_method"] == "deep+cai"
+    claims = json.loads((out / "claims.json").read_text())
+    assert claims[0]["method"] == "deep+cai" and claims[0]["context"] == "all"
+    assert report["drives"] == claims[0]["drives"] and report["interval"] == claims[0]["interval"]
     assert len(csv) == 24
 
     t, meta = load_safetensors(out / "shap_values.safetensors", with_metadata=True)
@@ -93,10 +128,22 @@ def test_cli_refuses_a_bag_of_the_other_experiment_and_a_missing_model(exp2, run
 
 
 @pytest.fixture(scope="module")
+def kernel_cli(exp2, run_cli):
+    """The CLI's report with the node's defaults (Kernel SHAP ∪ CAI) on NODE_SAMPLES observations."""
+    d, _ = exp2
+    r = run_cli("explain", "--model", d / "models", "--bag", d / "bag", "--method", "kernel",
+                "--samples", str(NODE_SAMPLES), "--no-pair-plots", "--cache", d / "cache", "--out", d / "kernel",
+                timeout=300)
+    assert r.returncode == 0, r.stderr
+    return json.loads((d / "kernel" / "relevance.json").read_text())
+
+
+@pytest.fixture(scope="module")
 def explainer_node(exp2, causal_arm_bin, private_netns_module):
     d, _ = exp2
     env = dict(os.environ, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp", ROS_DOMAIN_ID=str(DOMAIN))
-    params = ["-p", f"model_dir:={d / 'models'}", "-p", f"bag:={d / 'bag'}", "-p", f"cache:={d / 'cache'}"]
+    params = ["-p", f"model_dir:={d / 'models'}", "-p", f"bag:={d / 'bag'}", "-p", f"cache:={d / 'cache'}",
+              "-p", f"samples:={NODE_SAMPLES}"]
     with node_process(causal_arm_bin.parent / "causal_arm_explainer", params, env) as proc:
         yield proc
 
@@ -111,32 +158,108 @@ def participant(explainer_node):
 @pytest.fixture(scope="module")
 def client(participant, explainer_node):
     c = idl.ServiceClient(participant, "/explainer/explain", idl.ExplainRequest, idl.ExplainReply)
-    assert c.wait_for_server(), "no /explainer/explain server matched"
+    # The node serves once its report is made (Kernel SHAP and CAI: seconds on this bag).
+    assert c.wait_for_server(timeout=120), "no /explainer/explain server matched"
     return c
 
 
-def test_relevance_report_is_latched_and_equals_the_cli_report(exp2, participant, client):
+def take_latched(participant, idl_type, timeout=20.0):
+    """The latched /explainer/relevance report, read by a reader of `idl_type` that joins
+    after the node published (transient-local still delivers it)."""
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
 
-    d, _ = exp2
-    # Joined late (after the node published): transient-local still delivers the report.
-    reader = DataReader(participant, Topic(participant, "rt/explainer/relevance", idl.Relevance), qos=idl.latched_qos())
-    deadline = time.monotonic() + 20
+    reader = DataReader(participant, Topic(participant, "rt/explainer/relevance", idl_type), qos=idl.latched_qos())
+    deadline = time.monotonic() + timeout
     samples = []
     while not samples and time.monotonic() < deadline:
         samples = reader.take(N=4)
         time.sleep(0.05)
     assert samples, "no latched /explainer/relevance report"
-    msg = samples[0]
-    cli = json.loads((d / "deep" / "relevance.json").read_text())
-    assert (msg.experiment, msg.method, msg.observations, msg.background) == ("exp2", "deep", 200, 100)
+    return samples[0]
+
+
+def check_verdicts(msg):
+    """What must hold of the node's calibrated report on this bag: shapes, affected = some
+    action drives the feature, drives ⇔ score ≥ 1 (score = the deciding evidence over its
+    threshold), the score inside its interval (a CAI-decided score is the interval's lower
+    end), colour never driven, each joint's action driving its own angle with an interval
+    wholly above every other action's on that angle, and a_mgt's strongest edge on mgt.
+    Returns the verdicts as an action × state matrix.
+
+    Off-diagonal a_i → θ_j edges are claimed on this bag and are not asserted absent: the
+    quick FM (30 epochs on 4 episodes) leaks a little of every joint action into every angle,
+    and today's SHAP rule (0.01 × the change's std) claims that leak (scores 1–6 against
+    60–110 on the diagonal), and CAI claims a_mgt → θ (the quick FM's angle predictions move
+    with the magnet command by more than its error on them)."""
+    na, ns = len(msg.action_names), len(msg.state_names)
+    drives = np.array(msg.drives, dtype=bool).reshape(na, ns)
+    score = np.array(msg.score).reshape(na, ns)
+    lower, upper = np.array(msg.interval_lower).reshape(na, ns), np.array(msg.interval_upper).reshape(na, ns)
+    assert list(msg.affected) == drives.any(axis=0).tolist()
+    assert np.array_equal(drives, score >= 1.0), "a verdict disagrees with its score"
+    assert np.all(lower <= score + 1e-12) and np.all(score <= upper + 1e-12), "a score outside its interval"
+    state = {s: i for i, s in enumerate(msg.state_names)}
+    for colour in ["o_R", "o_G", "o_B"]:
+        assert not drives[:, state[colour]].any() and not msg.affected[state[colour]], f"{colour} driven"
+    for j in range(7):
+        k = state[f"theta{j}"]
+        others = [a for a in range(na) if a != j]
+        assert drives[j, k], f"a{j} does not drive theta{j}"
+        assert lower[j, k] > upper[others, k].max(), (j, lower[j, k], upper[others, k])
+    assert int(np.argmax(score[msg.action_names.index("a_mgt")])) == state["mgt"]
+    return drives
+
+
+def test_relevance_report_is_latched_calibrated_and_equals_the_cli_report(exp2, kernel_cli, participant, client):
+    msg = take_latched(participant, RelevanceV2)
+    cli = kernel_cli
+    assert (msg.experiment, msg.method, msg.observations, msg.background) == ("exp2", "kernel", NODE_SAMPLES, 50)
     assert list(msg.action_names) == cli["action_names"] and list(msg.state_names) == cli["state_names"]
-    # Same seed, data and method as the CLI run: the same numbers.
-    np.testing.assert_allclose(np.array(msg.mean_abs_shap).reshape(8, 23), np.array(cli["mean_abs_shap"]), rtol=1e-9, atol=1e-15)
+    # Same seed, data and settings as the CLI run: the same numbers.
+    np.testing.assert_allclose(np.array(msg.mean_abs_shap).reshape(8, 23), np.array(cli["mean_abs_shap"]),
+                               rtol=1e-9, atol=1e-15)
+    assert msg.decision_method == cli["decision_method"] == "kernel+cai"
+    assert msg.decision_rule == cli["decision_rule"] and "CAI" in msg.decision_rule
+    assert list(msg.drives) == [d for row in cli["drives"] for d in row]
+    np.testing.assert_allclose(msg.score, np.ravel(cli["decision_score"]), rtol=1e-12)
+    interval = np.array(cli["interval"])
+    np.testing.assert_allclose(msg.interval_lower, interval[..., 0].ravel(), rtol=1e-12)
+    np.testing.assert_allclose(msg.interval_upper, interval[..., 1].ravel(), rtol=1e-12)
     assert list(msg.affected) == [v["affected"] for v in cli["states"]]
-    assert msg.affected[6:9] == [False, False, False]  # colour
     assert msg.rule == cli["rule"] and "one-step change" in msg.rule and msg.threshold == cli["threshold"]
+
+    drives = check_verdicts(msg)
+    # The calibrated verdicts are more than today's SHAP rule over all observations (which
+    # the union contains): CAI or SHAP in some context adds edges.
+    today = np.array(msg.mean_abs_shap).reshape(8, 23) >= msg.threshold * np.array(msg.state_scale)
+    today &= np.array(msg.state_scale) > 0
+    assert np.all(drives >= today)
+    assert (drives & ~today).any(), "the calibrated verdicts equal today's rule"
+    # The checks can fail: a report with a verdict flipped, a colour driven or another action
+    # outranking a joint's own on its angle is refused.
+    state, action = list(msg.state_names).index, list(msg.action_names).index
+    corruptions = [
+        ("drives", action("a0") * 23 + state("theta0"), False),
+        ("drives", action("a_mgt") * 23 + state("o_R"), True),
+        ("interval_upper", action("a1") * 23 + state("theta0"), 1e6),
+    ]
+    for name, i, value in corruptions:
+        bad = RelevanceV2(**{k: getattr(msg, k) for k in msg.__dataclass_fields__})
+        setattr(bad, name, list(getattr(msg, name)))
+        getattr(bad, name)[i] = value
+        with pytest.raises(AssertionError):
+            check_verdicts(bad)
+
+
+def test_a_reader_of_the_old_layout_still_reads_the_report(participant, client):
+    # ros_idl.Relevance is the message before the calibrated fields were appended.
+    from cyclonedds.domain import DomainParticipant
+
+    old = take_latched(DomainParticipant(DOMAIN), idl.Relevance)
+    new = take_latched(participant, RelevanceV2)
+    assert old.state_names == new.state_names and old.rule == new.rule
+    assert list(old.affected) == list(new.affected) and list(old.mean_abs_shap) == list(new.mean_abs_shap)
 
 
 def test_explain_service_attributions_are_efficient_against_numpy(exp2, client):
@@ -190,6 +313,12 @@ def test_node_refuses_missing_parameters_and_the_wrong_experiment(causal_arm_bin
     r = subprocess.run([str(binary), "--ros-args", "-p", f"model_dir:={d / 'models'}"], env=env,
                        capture_output=True, text=True, timeout=60)
     assert r.returncode != 0 and "parameters model_dir and bag are required" in r.stderr, r.stderr
+    # Bad report parameters are refused before the bag is read.
+    for param, message in [("kappa:=0.0", 'parameter "kappa" = 0 is outside its range'),
+                           ("method:=lime", 'unknown SHAP method "lime"')]:
+        r = subprocess.run([str(binary), "--ros-args", "-p", "model_dir:=x", "-p", "bag:=y", "-p", param],
+                           env=env, capture_output=True, text=True, timeout=60)
+        assert r.returncode != 0 and message in r.stderr, r.stderr
     r = run_cli("generate", "exp1", "--profile", "quick", "--steps", "300", "--out", tmp_path / "exp1")
     assert r.returncode == 0, r.stderr
     r = subprocess.run([str(binary), "--ros-args", "-p", f"model_dir:={d / 'models'}", "-p", f"bag:={tmp_path / 'exp1'}"],

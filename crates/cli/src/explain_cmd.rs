@@ -12,7 +12,7 @@ use causal_arm_explainer::influence::{
 };
 use causal_arm_explainer::output::write_all;
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
-use causal_arm_explainer::{BackgroundKind, Explainer, Method, Settings, relevance};
+use causal_arm_explainer::{BackgroundKind, Explainer, Method, Settings, calibrated_relevance};
 use causal_arm_scoring::EdgeClaims;
 use causal_arm_trainer::load_model;
 use causal_arm_truth::{Truth, check_names, score_claims, score_table};
@@ -181,14 +181,14 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
     let explanation =
         explainer.explain_dataset(&data, &settings, &mut |done, _| counter.set(done as u64))?;
     counter.finish();
-    let report = relevance(&explanation, args.threshold);
+    let claims = shap_and_cai_claims(args, &explainer, &data, &explanation)?;
+    let report = calibrated_relevance(&explanation, args.threshold, &claims)?;
     let out = args
         .out
         .clone()
         .unwrap_or_else(|| args.model.join(format!("explain-{}", settings.method)));
     let written = write_all(&out, &explanation, &report, !args.no_pair_plots)
         .with_context(|| format!("cannot write the explanation into {}", out.display()))?;
-    let claims = shap_and_cai_claims(args, &explainer, &data, &explanation)?;
     finish_claims(args, &out, &claims, truth.as_ref())?;
 
     println!(

@@ -27,7 +27,7 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::index::sample;
 
-pub use report::{Relevance, relevance};
+pub use report::{Relevance, calibrated_relevance, relevance};
 
 /// Why an explanation could not be made; every bad input is reported, never a panic.
 #[derive(Debug, thiserror::Error)]

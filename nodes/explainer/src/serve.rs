@@ -167,7 +167,8 @@ impl ExplainService {
     }
 }
 
-/// The report as the latched `/explainer/relevance` message.
+/// The report as the latched `/explainer/relevance` message (matrices row-major, action ×
+/// state).
 pub fn relevance_msg(report: &Relevance, header: Header) -> RelevanceMsg {
     RelevanceMsg {
         header,
@@ -182,5 +183,11 @@ pub fn relevance_msg(report: &Relevance, header: Header) -> RelevanceMsg {
         affected: report.states.iter().map(|s| s.affected).collect(),
         threshold: report.threshold,
         rule: report.rule.clone(),
+        decision_method: report.decision_method.clone(),
+        drives: report.drives.iter().flatten().copied().collect(),
+        score: report.decision_score.iter().flatten().copied().collect(),
+        interval_lower: report.interval.iter().flatten().map(|i| i[0]).collect(),
+        interval_upper: report.interval.iter().flatten().map(|i| i[1]).collect(),
+        decision_rule: report.decision_rule.clone(),
     }
 }

@@ -1,22 +1,27 @@
 //! `causal_arm_explainer`: explains a forward model written by `causal-arm train` on
 //! transitions of a bag, publishes the relevance report latched on `/explainer/relevance`
-//! and serves `/explainer/explain` (SHAP attributions of the caller's rows). Bad requests
+//! (verdicts `<method>+cai`, as `causal-arm explain` decides them: SHAP by today's rule
+//! united with CAI against the model's error, with each edge's score and interval) and serves `/explainer/explain` (SHAP attributions of the caller's rows). Bad requests
 //! get a `success: false` reply saying why, and the node keeps serving.
 
 use std::path::PathBuf;
-use std::time::SystemTime;
+use std::time::{Instant, SystemTime};
 
 use anyhow::bail;
-use causal_arm_dataset::{ActionSource, Cache, load_bags};
+use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
+use causal_arm_explainer::influence::InfluenceSettings;
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
 use causal_arm_explainer::serve::{ExplainService, relevance_msg};
-use causal_arm_explainer::{Explainer, Method, Settings, forward_inputs, relevance};
+use causal_arm_explainer::verdicts::shap_and_cai_claims;
+use causal_arm_explainer::{
+    Explainer, Method, Relevance, Settings, calibrated_relevance, forward_inputs,
+};
 use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_msgs::msg::Relevance as RelevanceMsg;
 use causal_arm_msgs::srv::Explain;
 use causal_arm_msgs::std_msgs::msg::Header;
 use causal_arm_node::run::{Served, node_main, serve_until_stopped, stop_flag};
-use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
+use causal_arm_node::{ParamSpec, ParamValue, Params, RosArgs, RosNode, qos};
 use causal_arm_trainer::load_model;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
@@ -36,11 +41,10 @@ fn now() -> Time {
     }
 }
 
-fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
-    // First of all: a SIGINT that arrives while the node starts up must not be lost (a
-    // background job of a non-interactive shell starts with SIGINT ignored until then).
-    let stop = stop_flag();
-    let specs = [
+/// The node's parameters.
+fn param_specs() -> Vec<ParamSpec> {
+    let influence = InfluenceSettings::default();
+    vec![
         ParamSpec::new(
             "model_dir",
             ParamValue::String(String::new()),
@@ -58,29 +62,85 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         ),
         ParamSpec::new(
             "method",
-            ParamValue::String("deep".into()),
-            "method of the published relevance report: deep or kernel",
+            ParamValue::String("kernel".into()),
+            "SHAP method of the published report, united with CAI into its verdicts (<method>+cai): deep or kernel",
         ),
         ParamSpec::new(
             "samples",
             ParamValue::Integer(200),
-            "observations of the relevance report",
+            "observations of the relevance report (SHAP and CAI alike)",
         )
         .with_range(1.0, 100_000.0),
         ParamSpec::new(
             "threshold",
             ParamValue::Double(DEFAULT_THRESHOLD),
-            "relevance threshold, a fraction of each state feature's standard deviation",
+            "SHAP part of the verdicts: a fraction of each state feature's one-step change std",
         )
         .with_range(1e-12, 1e6),
+        ParamSpec::new(
+            "kappa",
+            ParamValue::Double(influence.kappa),
+            "CAI part of the verdicts: the bootstrap lower bound of effect / model error must exceed it",
+        )
+        .with_range(1e-6, 1e6),
+        ParamSpec::new(
+            "resamples",
+            ParamValue::Integer(influence.resamples as i64),
+            "CAI: draws of each action per observation",
+        )
+        .with_range(2.0, 100_000.0),
         ParamSpec::new("seed", ParamValue::Integer(0), "seed of the draws").with_range(0.0, 1e15),
         ParamSpec::new(
             "cache",
             ParamValue::String(String::new()),
             "dataset cache directory (empty: $CAUSAL_ARM_CACHE or ~/.cache/causal-arm)",
         ),
-    ];
-    let mut node = RosNode::new("causal_arm_explainer", &specs, ros_args)?;
+    ]
+}
+
+/// The relevance report of `explainer` on `data` as `causal-arm explain --method <method>`
+/// makes it: SHAP and CAI on the same observations, verdicts `<method>+cai`.
+fn make_report(
+    explainer: &Explainer,
+    data: &Dataset,
+    params: &Params,
+) -> anyhow::Result<Relevance> {
+    let method: Method = params
+        .string("method")
+        .parse()
+        .map_err(anyhow::Error::msg)?;
+    let seed = params.integer("seed") as u64;
+    let threshold = params.double("threshold");
+    let samples = params.integer("samples") as usize;
+    let mut settings = Settings::for_method(method);
+    settings.samples = samples;
+    settings.seed = seed;
+    let influence = InfluenceSettings {
+        observations: samples,
+        resamples: params.integer("resamples") as usize,
+        kappa: params.double("kappa"),
+        seed,
+        ..InfluenceSettings::default()
+    };
+    let started = Instant::now();
+    let explanation = explainer.explain_dataset(data, &settings, &mut |_, _| {})?;
+    let claims = shap_and_cai_claims(explainer, data, &explanation, threshold, &influence)?;
+    let report = calibrated_relevance(&explanation, threshold, &claims)?;
+    tracing::info!(
+        "{} on {} observations in {:.2} s; not affected by any action: [{}]",
+        report.decision_method,
+        explanation.attributions.n_obs,
+        started.elapsed().as_secs_f64(),
+        report.unaffected.join(", ")
+    );
+    Ok(report)
+}
+
+fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
+    // First of all: a SIGINT that arrives while the node starts up must not be lost (a
+    // background job of a non-interactive shell starts with SIGINT ignored until then).
+    let stop = stop_flag();
+    let mut node = RosNode::new("causal_arm_explainer", &param_specs(), ros_args)?;
     let params = node.params();
     let (dir, bag) = (params.string("model_dir"), params.string("bag"));
     if dir.is_empty() || bag.is_empty() {
@@ -88,19 +148,16 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             "parameters model_dir and bag are required: --ros-args -p model_dir:=DIR -p bag:=BAG (a directory written by `causal-arm train` and a bag of the same experiment)"
         );
     }
-    let method: Method = params
+    // Checked before the data is loaded: a misspelt method costs no time.
+    params
         .string("method")
-        .parse()
+        .parse::<Method>()
         .map_err(anyhow::Error::msg)?;
     let seed = params.integer("seed") as u64;
-    let threshold = params.double("threshold");
     let cache = match params.string("cache") {
         "" => Cache::new(Cache::default_dir()),
         dir => Cache::new(dir),
     };
-    let mut report_settings = Settings::for_method(method);
-    report_settings.samples = params.integer("samples") as usize;
-    report_settings.seed = seed;
     let model = load_model(std::path::Path::new(dir), params.string("forward_model"))?;
     let explainer = Explainer::new(model)?;
     let (data, _) = load_bags(
@@ -110,15 +167,7 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         Some(&cache),
     )?;
 
-    let explanation = explainer.explain_dataset(&data, &report_settings, &mut |_, _| {})?;
-    let report = relevance(&explanation, threshold);
-    tracing::info!(
-        "{} SHAP on {} observations in {:.2} s; not affected by any action: [{}]",
-        method,
-        explanation.attributions.n_obs,
-        explanation.seconds,
-        report.unaffected.join(", ")
-    );
+    let report = make_report(&explainer, &data, params)?;
     let relevance_pub = node.publisher::<RelevanceMsg>(RELEVANCE, qos::latched())?;
     relevance_pub.publish(relevance_msg(
         &report,

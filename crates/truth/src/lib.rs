@@ -28,7 +28,9 @@ use serde::{Deserialize, Serialize};
 pub use causal_arm_dataset::Context;
 pub use engine::intervene;
 pub use output::{load, write_all};
-pub use score::{ScoreRow, check_names, score_claims, score_table};
+pub use score::{
+    ScoreRow, check_horizon, check_names, score_claims, score_horizons, score_table, truth_horizons,
+};
 pub use trace::{Trace, TraceStep};
 
 /// Why a ground truth could not be made or read.

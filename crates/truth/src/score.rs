@@ -102,6 +102,46 @@ pub fn score_claims(truth: &Truth, claims: &EdgeClaims) -> Result<Vec<ScoreRow>,
     Ok(rows)
 }
 
+/// The horizons k of s(t+k) at which `truth` has matrices, ascending.
+pub fn truth_horizons(truth: &Truth) -> Vec<usize> {
+    let mut horizons: Vec<usize> = truth.matrices.iter().map(|m| m.horizon).collect();
+    horizons.sort_unstable();
+    horizons.dedup();
+    horizons
+}
+
+/// Refuses `horizon` when `truth` has no matrices for it, naming the horizons it has:
+/// claims at s(t+k) can only be scored against the simulator's answer at the same k.
+/// Callers check before computing claims, as with [`check_names`].
+pub fn check_horizon(truth: &Truth, horizon: usize) -> Result<(), TruthError> {
+    let horizons = truth_horizons(truth);
+    if horizons.contains(&horizon) {
+        return Ok(());
+    }
+    let listed: Vec<String> = horizons.iter().map(|h| h.to_string()).collect();
+    Err(TruthError::File {
+        path: truth.bag.clone().into(),
+        problem: format!(
+            "the truth has no matrices at horizon {horizon} (its horizons: {}); write one with `causal-arm intervene … --horizon {horizon}`",
+            listed.join(", ")
+        ),
+    })
+}
+
+/// Scores claims at their own horizons: claims about s(t+k) against the truth's matrix of
+/// the same context at k ([`score_claims`] per claim set). Every horizon is checked first,
+/// so a truth that lacks one is refused before anything is scored.
+pub fn score_horizons(truth: &Truth, claims: &[EdgeClaims]) -> Result<Vec<ScoreRow>, TruthError> {
+    for c in claims {
+        check_horizon(truth, c.horizon)?;
+    }
+    let mut rows = Vec::new();
+    for c in claims {
+        rows.extend(score_claims(truth, c)?);
+    }
+    Ok(rows)
+}
+
 /// A fixed-width table of score rows, for terminals and logs.
 pub fn score_table(rows: &[ScoreRow]) -> String {
     let rate = |v: Option<f64>| v.map_or("   n/a".to_owned(), |v| format!("{v:>6.3}"));
@@ -139,4 +179,99 @@ pub fn score_table(rows: &[ScoreRow]) -> String {
         ));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{EdgeMatrix, FORMAT, Plan};
+
+    /// Two actions × two features; at k = 1 a0 moves theta0 only, at k = 2 also ef_x (the
+    /// arm has moved on with the changed joint).
+    fn truth() -> Truth {
+        let matrix = |horizon: usize, active: [[f64; 2]; 2]| EdgeMatrix {
+            context: "all".into(),
+            horizon,
+            states: 100,
+            active_fraction: active.iter().map(|r| r.to_vec()).collect(),
+            mean_effect: vec![vec![0.0; 2]; 2],
+            max_effect: vec![vec![0.0; 2]; 2],
+        };
+        Truth {
+            format: FORMAT.into(),
+            experiment: "exp1".into(),
+            bag: "bag".into(),
+            action_names: vec!["a0".into(), "a1".into()],
+            state_names: vec!["theta0".into(), "ef_x".into()],
+            plan: Plan {
+                horizon: 2,
+                ..Plan::default()
+            },
+            joint_deltas: vec![],
+            resimulated_steps: 0,
+            noise_floor: 0.0,
+            seconds: 0.0,
+            matrices: vec![
+                matrix(1, [[1.0, 0.0], [0.0, 0.0]]),
+                matrix(2, [[1.0, 0.5], [0.0, 0.0]]),
+            ],
+        }
+    }
+
+    fn claims(horizon: usize) -> EdgeClaims {
+        EdgeClaims {
+            method: "cai/err".into(),
+            rule: "r".into(),
+            context: "all".into(),
+            horizon,
+            observations: 10,
+            action_names: vec!["a0".into(), "a1".into()],
+            state_names: vec!["theta0".into(), "ef_x".into()],
+            score: vec![vec![3.0, 2.0], vec![0.1, 0.2]],
+            interval: None,
+            drives: vec![vec![true, true], vec![false, false]],
+        }
+    }
+
+    #[test]
+    fn claims_are_scored_against_the_truth_at_their_own_horizon() {
+        let truth = truth();
+        assert_eq!(truth_horizons(&truth), vec![1, 2]);
+        let rows = score_horizons(&truth, &[claims(1), claims(2)]).unwrap();
+        let overall = |k: usize| {
+            rows.iter()
+                .find(|r| r.horizon == k && r.block == "all")
+                .map(|r| r.scores.clone())
+                .unwrap()
+        };
+        // At k = 1, a0 → ef_x is absent: one false claim.
+        let one = overall(1);
+        assert_eq!(
+            (one.precision, one.recall, one.shd),
+            (Some(0.5), Some(1.0), 1)
+        );
+        // At k = 2 the same verdicts are exactly right.
+        let two = overall(2);
+        assert_eq!(
+            (two.precision, two.recall, two.shd),
+            (Some(1.0), Some(1.0), 0)
+        );
+        assert_eq!(two.auroc, Some(1.0));
+        // Blocks are scored per horizon as at one step.
+        assert!(rows.iter().any(|r| r.horizon == 2 && r.block == "ef"));
+    }
+
+    #[test]
+    fn a_horizon_the_truth_lacks_is_refused_by_name() {
+        let truth = truth();
+        let err = score_horizons(&truth, &[claims(1), claims(3)])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("no matrices at horizon 3") && err.contains("its horizons: 1, 2"),
+            "{err}"
+        );
+        assert!(check_horizon(&truth, 2).is_ok());
+        assert!(check_horizon(&truth, 0).is_err());
+    }
 }

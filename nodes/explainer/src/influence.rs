@@ -82,13 +82,13 @@ impl Effects {
 
 /// The observations an estimator probes: rows drawn from the data (seeded), their forward
 /// inputs `[state ++ action]`, and the generator that continues to draw from.
-struct Probe {
-    rng: StdRng,
-    rows: Vec<usize>,
-    base: Vec<f32>,
-    ns: usize,
-    na: usize,
-    width: usize,
+pub(crate) struct Probe {
+    pub(crate) rng: StdRng,
+    pub(crate) rows: Vec<usize>,
+    pub(crate) base: Vec<f32>,
+    pub(crate) ns: usize,
+    pub(crate) na: usize,
+    pub(crate) width: usize,
 }
 
 impl Probe {
@@ -96,22 +96,28 @@ impl Probe {
         check(settings, data.rows())?;
         let mut rng = StdRng::seed_from_u64(settings.seed);
         let rows = sample(&mut rng, data.rows(), settings.observations).into_vec();
+        Ok(Self::at_rows(data, rows, rng))
+    }
+
+    /// The observations `rows` (chosen by the caller, e.g. rows that start a chain of
+    /// transitions), drawing on with `rng`.
+    pub(crate) fn at_rows(data: &Dataset, rows: Vec<usize>, rng: StdRng) -> Self {
         let (ns, na) = (data.state_width(), data.action_width());
-        Ok(Self {
+        Self {
             base: forward_inputs(data, &rows),
             rng,
             rows,
             ns,
             na,
             width: ns + na,
-        })
+        }
     }
 }
 
 impl Probe {
     /// Input rows probing every action: per observation and action j, `count` copies of the
     /// observation with a_j replaced by draw number `index(j, i)` of [`ActionDraws`].
-    fn batch(
+    pub(crate) fn batch(
         &mut self,
         data: &Dataset,
         draws: &ActionDraws,
@@ -163,7 +169,7 @@ fn discrete_values(data: &Dataset, j: usize) -> Option<Vec<f32>> {
 /// data shows in states like this one (same values of every discrete state feature, the
 /// magnet's on/off): switching on a magnet that is on never occurs, and a network's answer
 /// there is arbitrary.
-struct ActionDraws {
+pub(crate) struct ActionDraws {
     discrete: Vec<Option<Vec<f32>>>,
     /// State columns with few distinct values (the context a discrete action's support
     /// depends on).
@@ -173,7 +179,7 @@ struct ActionDraws {
 }
 
 impl ActionDraws {
-    fn new(data: &Dataset) -> Self {
+    pub(crate) fn new(data: &Dataset) -> Self {
         let discrete: Vec<Option<Vec<f32>>> = (0..data.action_width())
             .map(|j| discrete_values(data, j))
             .collect();
@@ -279,7 +285,7 @@ pub fn cai_effects(
     })
 }
 
-fn check(settings: &InfluenceSettings, rows: usize) -> Result<()> {
+pub(crate) fn check(settings: &InfluenceSettings, rows: usize) -> Result<()> {
     let bad = |m: String| Err(ExplainError::Options(m));
     if settings.observations == 0 || settings.resamples < 2 || settings.bootstrap == 0 {
         return bad(format!(
@@ -309,11 +315,28 @@ fn check(settings: &InfluenceSettings, rows: usize) -> Result<()> {
 /// that never changes within a transition gets an infinite floor: the data shows no action
 /// changing it, whatever a network does with it.
 pub fn feature_error(model: &LoadedModel, data: &Dataset, rows: &[usize]) -> Result<Vec<f64>> {
-    let ns = data.state_width();
-    let angular = angular_features(data.experiment);
     let predicted = model
         .predict(&forward_inputs(data, rows))
         .map_err(|e| ExplainError::Options(e.to_string()))?;
+    Ok(error_floor(
+        data,
+        &predicted,
+        rows,
+        &crate::change_scale(data),
+    ))
+}
+
+/// The floor of [`feature_error`] for predictions `predicted` (raw units, one row per entry
+/// of `rows`) of the next states of `rows`; `scale` is [`crate::change_scale`] of `data`.
+/// Shared with the chained model's h-step floors, whose targets lie h − 1 rows further on.
+pub(crate) fn error_floor(
+    data: &Dataset,
+    predicted: &[f32],
+    rows: &[usize],
+    scale: &[f64],
+) -> Vec<f64> {
+    let ns = data.state_width();
+    let angular = angular_features(data.experiment);
     let mut error = vec![0.0; ns];
     for (i, &r) in rows.iter().enumerate() {
         for (k, e) in error.iter_mut().enumerate() {
@@ -322,7 +345,6 @@ pub fn feature_error(model: &LoadedModel, data: &Dataset, rows: &[usize]) -> Res
         }
     }
     let n = rows.len().max(1) as f64;
-    let scale = crate::change_scale(data);
     let magnitude: Vec<f64> = (0..ns)
         .map(|k| {
             rows.iter()
@@ -331,7 +353,7 @@ pub fn feature_error(model: &LoadedModel, data: &Dataset, rows: &[usize]) -> Res
                 / n
         })
         .collect();
-    Ok((0..ns)
+    (0..ns)
         .map(|k| {
             if scale[k] == 0.0 {
                 f64::INFINITY
@@ -339,7 +361,7 @@ pub fn feature_error(model: &LoadedModel, data: &Dataset, rows: &[usize]) -> Res
                 (error[k] / n).max(magnitude[k] * f32::EPSILON as f64)
             }
         })
-        .collect())
+        .collect()
 }
 
 /// Calibrated claims from per-observation `effects` over the observations `members`
@@ -359,7 +381,12 @@ pub fn calibrated_claims(
     let n = members.len().max(1);
     let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xB007);
     let draws: Vec<Vec<usize>> = (0..settings.bootstrap)
-        .map(|_| (0..n).map(|_| members[rng.random_range(0..n)]).collect())
+        // No draws for a context without observations (no panic; its claims stay empty).
+        .map(|_| {
+            (0..members.len())
+                .map(|_| members[rng.random_range(0..n)])
+                .collect()
+        })
         .collect();
     let ratio = |sum: f64, k: usize| {
         let mean = sum / n as f64;
@@ -406,7 +433,7 @@ pub fn calibrated_claims(
 /// ([`feature_error`] over the context's rows of a seeded pool): the floors of
 /// [`Rule::ErrorRatio`], measured once however many effects are judged against them.
 pub struct ErrorFloors {
-    per_context: Vec<Vec<f64>>,
+    pub(crate) per_context: Vec<Vec<f64>>,
 }
 
 impl ErrorFloors {

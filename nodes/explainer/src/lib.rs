@@ -10,6 +10,7 @@
 #![warn(missing_docs)]
 
 pub mod influence;
+pub mod multistep;
 pub mod output;
 pub mod report;
 pub mod serve;

@@ -1,0 +1,802 @@
+//! Multi-step causal influence: CAI through the chained forward model.
+//!
+//! One-step CAI ([`crate::influence`]) asks which s_k(t+1) an action a_j(t) moves. Some of
+//! the paper's findings are effects further on: turning the magnet on is *followed* by
+//! lifting the cube, once the arm moves away. Here the forward model is chained as in the
+//! mental simulation: from an observed state, a_j(t) is drawn as one-step CAI draws it, the
+//! model predicts s(t+1), is fed its own prediction with the *recorded* action a(t+1), and
+//! so on up to s(t+K). The effect of a_j(t) on s_k(t+h) is the spread of the predicted
+//! s_k(t+h) over the draws. It is judged by the same error-ratio rule as one-step CAI,
+//! against the chained model's own h-step error: an effect smaller than what the chained
+//! model gets wrong after h steps cannot be told from its mistakes. Verdicts come from the
+//! data and the model alone; the simulator's truth at horizon h only scores them.
+//!
+//! Chains never cross an episode: an observation needs K consecutive transitions of one
+//! episode starting at its row, each continuing the one before.
+
+use std::path::{Path, PathBuf};
+
+use causal_arm_dataset::{Context, ContextReader, Dataset, angular_features, wrap_angle};
+use causal_arm_scoring::EdgeClaims;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand::seq::index::sample;
+use serde::Serialize;
+
+use crate::influence::{
+    ActionDraws, Effects, ErrorFloors, InfluenceSettings, Probe, Rule, check, claims_by_context,
+    error_floor,
+};
+use crate::{ExplainError, Explainer, Result, forward_inputs};
+
+/// Largest horizon K: the simulator's truths are written up to s(t+10), and a tanh network
+/// chained further drifts far from the data it was trained on.
+pub const MAX_HORIZON: usize = 10;
+
+/// Refuses a horizon outside 1..=[`MAX_HORIZON`].
+pub fn check_horizon(horizon: usize) -> Result<()> {
+    if (1..=MAX_HORIZON).contains(&horizon) {
+        return Ok(());
+    }
+    Err(ExplainError::Options(format!(
+        "the horizon must be 1 to {MAX_HORIZON} steps of the chained forward model, got {horizon}"
+    )))
+}
+
+/// Whether row `r + 1` continues row `r`: same episode, the next step, and its s(t) is the
+/// s(t+1) of row `r` (a dropped message leaves a hole the chain must not jump).
+fn continues(data: &Dataset, r: usize) -> bool {
+    r + 1 < data.rows()
+        && data.episodes[r + 1] == data.episodes[r]
+        && data.steps[r + 1] == data.steps[r].wrapping_add(1)
+        && data.state(r + 1) == data.next_state(r)
+}
+
+/// Per row, the number of consecutive transitions of its episode that start at it (itself
+/// included): a chain of h steps from row r is possible when `reach[r] ≥ h`.
+pub fn chain_reach(data: &Dataset) -> Vec<usize> {
+    let mut reach = vec![1; data.rows()];
+    for r in (0..data.rows().saturating_sub(1)).rev() {
+        if continues(data, r) {
+            reach[r] = reach[r + 1] + 1;
+        }
+    }
+    reach
+}
+
+/// Rows from which the model can be chained `horizon` steps inside one episode.
+pub fn chainable_rows(data: &Dataset, horizon: usize) -> Vec<usize> {
+    chain_reach(data)
+        .iter()
+        .enumerate()
+        .filter(|&(_, &reach)| reach >= horizon)
+        .map(|(r, _)| r)
+        .collect()
+}
+
+/// Chains the model `horizon` steps: step 1 from the input rows `first` (`[state ++
+/// action]`), step h ≥ 2 from the model's prediction with the recorded action a(t+h−1) of
+/// the data, where input row i starts at data row `origin(i)`. `visit(h, predicted)` sees
+/// the predicted s(t+h) of every row (raw units, offset added, angles wrapped, as the
+/// mental simulation feeds them back).
+fn roll(
+    explainer: &Explainer,
+    data: &Dataset,
+    first: Vec<f32>,
+    origin: impl Fn(usize) -> usize,
+    horizon: usize,
+    mut visit: impl FnMut(usize, &[f32]) -> Result<()>,
+) -> Result<()> {
+    let (ns, na) = (data.state_width(), data.action_width());
+    let predict = |inputs: &[f32]| {
+        explainer
+            .model()
+            .predict(inputs)
+            .map_err(|e| ExplainError::Options(e.to_string()))
+    };
+    let mut states = predict(&first)?;
+    drop(first);
+    visit(1, &states)?;
+    for h in 2..=horizon {
+        let mut inputs = Vec::with_capacity(states.len() / ns * (ns + na));
+        for (i, state) in states.chunks_exact(ns).enumerate() {
+            inputs.extend_from_slice(state);
+            inputs.extend_from_slice(data.action(origin(i) + h - 1));
+        }
+        states = predict(&inputs)?;
+        visit(h, &states)?;
+    }
+    Ok(())
+}
+
+/// Standard deviation of each feature over each group of `draws` consecutive rows of
+/// `predicted` (`ns` wide), angles as wrapped differences from the group's first row (a
+/// cube turning through ±π is a small spread, not 2π).
+fn spreads(predicted: &[f32], draws: usize, ns: usize, angular: &[bool]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(predicted.len() / draws);
+    let mut d = vec![0.0; draws];
+    for group in predicted.chunks_exact(draws * ns) {
+        for s in 0..ns {
+            let first = group[s] as f64;
+            for (i, v) in d.iter_mut().enumerate() {
+                let x = group[i * ns + s] as f64 - first;
+                *v = if angular[s] { wrap_angle(x) } else { x };
+            }
+            let mean = d.iter().sum::<f64>() / draws as f64;
+            let var = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / draws as f64;
+            out.push(var.sqrt());
+        }
+    }
+    out
+}
+
+/// Observation rows for chains of `horizon` steps: `settings.observations` rows drawn
+/// (seeded) from those with that many transitions ahead in their episode.
+fn observation_rows(
+    data: &Dataset,
+    settings: &InfluenceSettings,
+    horizon: usize,
+) -> Result<(Vec<usize>, StdRng)> {
+    let candidates = chainable_rows(data, horizon);
+    if candidates.len() < settings.observations {
+        return Err(ExplainError::Options(format!(
+            "only {} of the data's {} transitions start {horizon} consecutive transitions inside an episode; {} observations need more (lower --samples or --horizon, or give a longer bag)",
+            candidates.len(),
+            data.rows(),
+            settings.observations
+        )));
+    }
+    check(settings, candidates.len())?;
+    let mut rng = StdRng::seed_from_u64(settings.seed);
+    let rows = sample(&mut rng, candidates.len(), settings.observations)
+        .into_iter()
+        .map(|i| candidates[i])
+        .collect();
+    Ok((rows, rng))
+}
+
+/// CAI through the chained model: for every horizon h = 1..=`horizon`, the effects
+/// `[obs][action][state]` of a_j(t) on s_k(t+h) (the spread of the predicted s_k(t+h) over
+/// `settings.resamples` draws of a_j(t), drawn as one-step CAI draws them; the recorded
+/// actions follow). The observations are the same at every horizon.
+pub fn chained_cai_effects(
+    explainer: &Explainer,
+    data: &Dataset,
+    settings: &InfluenceSettings,
+    horizon: usize,
+) -> Result<Vec<Effects>> {
+    check_horizon(horizon)?;
+    let (rows, rng) = observation_rows(data, settings, horizon)?;
+    let mut probe = Probe::at_rows(data, rows, rng);
+    let k = settings.resamples;
+    let batch = probe.batch(data, &ActionDraws::new(data), k, |_, i| i);
+    let (rows, ns, na) = (probe.rows, probe.ns, probe.na);
+    let angular = angular_features(data.experiment);
+    let mut effects = Vec::with_capacity(horizon);
+    roll(
+        explainer,
+        data,
+        batch,
+        |i| rows[i / (na * k)],
+        horizon,
+        |_, predicted| {
+            effects.push(Effects {
+                method: "cai".into(),
+                rows: rows.clone(),
+                n_action: na,
+                n_state: ns,
+                values: spreads(predicted, k, ns, &angular),
+            });
+            Ok(())
+        },
+    )?;
+    Ok(effects)
+}
+
+/// The chained model's own error after h steps, for every h = 1..=`horizon` and every
+/// context of the data's experiment ([`feature_error`](crate::influence::feature_error)'s
+/// floor of the prediction of s(t+h) from s(t) and the recorded actions, as the mental
+/// simulation measures it), over up to `settings.error_rows` chainable rows; contexts are
+/// judged on s(t).
+pub fn chained_error_floors(
+    explainer: &Explainer,
+    data: &Dataset,
+    settings: &InfluenceSettings,
+    horizon: usize,
+) -> Result<Vec<ErrorFloors>> {
+    check_horizon(horizon)?;
+    let candidates = chainable_rows(data, horizon);
+    let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
+    let pool: Vec<usize> = sample(
+        &mut rng,
+        candidates.len(),
+        settings.error_rows.min(candidates.len()),
+    )
+    .into_iter()
+    .map(|i| candidates[i])
+    .collect();
+    let reader = ContextReader::new(data.experiment);
+    let members: Vec<Vec<usize>> = Context::of(data.experiment)
+        .iter()
+        .map(|c| {
+            (0..pool.len())
+                .filter(|&i| reader.holds(data, pool[i], c))
+                .collect()
+        })
+        .collect();
+    let scale = crate::change_scale(data);
+    let ns = data.state_width();
+    let mut floors = Vec::with_capacity(horizon);
+    roll(
+        explainer,
+        data,
+        forward_inputs(data, &pool),
+        |i| pool[i],
+        horizon,
+        |h, predicted| {
+            let per_context = members
+                .iter()
+                .map(|m| {
+                    let rows: Vec<f32> = m
+                        .iter()
+                        .flat_map(|&i| predicted[i * ns..(i + 1) * ns].iter().copied())
+                        .collect();
+                    let targets: Vec<usize> = m.iter().map(|&i| pool[i] + h - 1).collect();
+                    error_floor(data, &rows, &targets, &scale)
+                })
+                .collect();
+            floors.push(ErrorFloors { per_context });
+            Ok(())
+        },
+    )?;
+    Ok(floors)
+}
+
+/// What the chained model says at one horizon.
+#[derive(Debug, Clone, Serialize)]
+pub struct HorizonResult {
+    /// h of s(t+h).
+    pub horizon: usize,
+    /// Mean effect (spread of the predicted s_k(t+h), raw units) per context,
+    /// `[context][action][state]`, contexts in the order of [`MultiStep::contexts`].
+    pub mean_effect: Vec<Vec<Vec<f64>>>,
+    /// The chained model's h-step error per context, `[context][state]` (the floor the
+    /// verdicts compare with; `null` for a feature the data never changes).
+    pub error_floor: Vec<Vec<f64>>,
+    /// Verdicts per context (`all` first): score = mean effect / h-step error, interval its
+    /// 95 % bootstrap interval, drives = lower bound > κ.
+    pub claims: Vec<EdgeClaims>,
+}
+
+/// CAI through the chained forward model at every horizon 1..=K (`multistep.json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MultiStep {
+    /// K, the largest horizon.
+    pub horizon: usize,
+    /// How effects were measured and judged.
+    pub settings: InfluenceSettings,
+    /// Observations (the same at every horizon).
+    pub observations: usize,
+    /// Rows of the data from which K steps can be chained inside an episode.
+    pub chainable_rows: usize,
+    /// Context names, `all` first.
+    pub contexts: Vec<String>,
+    /// Action names (rows of every matrix).
+    pub action_names: Vec<String>,
+    /// State feature names (columns).
+    pub state_names: Vec<String>,
+    /// Wall time of effects and floors, s.
+    pub seconds: f64,
+    /// One entry per horizon, h = 1 first.
+    pub horizons: Vec<HorizonResult>,
+}
+
+/// Mean of `effects` over each context's observations, `[context][action][state]`.
+fn context_means(data: &Dataset, effects: &Effects) -> Vec<Vec<Vec<f64>>> {
+    let reader = ContextReader::new(data.experiment);
+    let (na, ns) = (effects.n_action, effects.n_state);
+    Context::of(data.experiment)
+        .iter()
+        .map(|c| {
+            let members: Vec<usize> = (0..effects.rows.len())
+                .filter(|&o| reader.holds(data, effects.rows[o], c))
+                .collect();
+            let n = members.len().max(1) as f64;
+            (0..na)
+                .map(|a| {
+                    (0..ns)
+                        .map(|k| {
+                            members
+                                .iter()
+                                .map(|&o| effects.values[(o * na + a) * ns + k])
+                                .sum::<f64>()
+                                / n
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// CAI through the chained forward model for horizons 1..=`horizon`: effects, the chained
+/// model's h-step error floors and the error-ratio verdicts per horizon and context.
+pub fn multistep_cai(
+    explainer: &Explainer,
+    data: &Dataset,
+    settings: &InfluenceSettings,
+    horizon: usize,
+) -> Result<MultiStep> {
+    let started = std::time::Instant::now();
+    let effects = chained_cai_effects(explainer, data, settings, horizon)?;
+    let floors = chained_error_floors(explainer, data, settings, horizon)?;
+    let horizons = effects
+        .iter()
+        .zip(&floors)
+        .enumerate()
+        .map(|(i, (effects, floors))| {
+            let h = i + 1;
+            let mut claims =
+                claims_by_context(explainer, data, effects, settings, Rule::ErrorRatio(floors));
+            for c in &mut claims {
+                c.horizon = h;
+                c.rule = format!(
+                    "{}, chained {h} step{} (recorded actions after a_j(t))",
+                    c.rule,
+                    if h == 1 { "" } else { "s" }
+                );
+            }
+            HorizonResult {
+                horizon: h,
+                mean_effect: context_means(data, effects),
+                error_floor: floors.per_context.clone(),
+                claims,
+            }
+        })
+        .collect();
+    Ok(MultiStep {
+        horizon,
+        settings: settings.clone(),
+        observations: effects.first().map_or(0, |e| e.rows.len()),
+        chainable_rows: chainable_rows(data, horizon).len(),
+        contexts: Context::of(data.experiment)
+            .iter()
+            .map(|c| c.name.to_owned())
+            .collect(),
+        action_names: explainer.action_names().to_vec(),
+        state_names: explainer.state_names().to_vec(),
+        seconds: started.elapsed().as_secs_f64(),
+        horizons,
+    })
+}
+
+/// One pair's figures at one horizon, in one context.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairPoint {
+    /// h of s(t+h).
+    pub horizon: usize,
+    /// Mean spread of the predicted feature, raw units.
+    pub effect: f64,
+    /// The chained model's h-step error on the feature.
+    pub floor: f64,
+    /// Mean effect / floor.
+    pub score: f64,
+    /// 95 % bootstrap interval of the score.
+    pub interval: [f64; 2],
+    /// The verdict.
+    pub drives: bool,
+}
+
+impl MultiStep {
+    /// Every claim set, horizon by horizon (`all` first within each).
+    pub fn claims(&self) -> impl Iterator<Item = &EdgeClaims> {
+        self.horizons.iter().flat_map(|h| &h.claims)
+    }
+
+    /// The curve of `action → state` over the horizons in `context`; `None` for unknown
+    /// names.
+    pub fn pair(&self, context: &str, action: &str, state: &str) -> Option<Vec<PairPoint>> {
+        let c = self.contexts.iter().position(|n| n == context)?;
+        let a = self.action_names.iter().position(|n| n == action)?;
+        let s = self.state_names.iter().position(|n| n == state)?;
+        Some(
+            self.horizons
+                .iter()
+                .map(|h| {
+                    let claims = &h.claims[c];
+                    PairPoint {
+                        horizon: h.horizon,
+                        effect: h.mean_effect[c][a][s],
+                        floor: h.error_floor[c][s],
+                        score: claims.score[a][s],
+                        interval: claims.interval.as_ref().map_or([0.0; 2], |i| i[a][s]),
+                        drives: claims.drives[a][s],
+                    }
+                })
+                .collect(),
+        )
+    }
+
+    /// The `n` pairs (action, state indices) with the largest score at any horizon over all
+    /// states, strongest first.
+    pub fn strongest_pairs(&self, n: usize) -> Vec<(usize, usize)> {
+        let (na, ns) = (self.action_names.len(), self.state_names.len());
+        let best = |a: usize, s: usize| {
+            self.horizons
+                .iter()
+                .map(|h| h.claims[0].score[a][s])
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max)
+        };
+        let mut pairs: Vec<(f64, usize, usize)> = (0..na)
+            .flat_map(|a| (0..ns).map(move |s| (a, s)))
+            .map(|(a, s)| (best(a, s), a, s))
+            .collect();
+        pairs.sort_by(|p, q| q.0.total_cmp(&p.0));
+        pairs.into_iter().take(n).map(|(_, a, s)| (a, s)).collect()
+    }
+
+    /// A line showing `action → state` over all states at a few horizons (1, 5, 10 and K,
+    /// those up to K), e.g. `a_mgt → o_z (all states): h=1 1.2e-3 / error 4.0e-4 = 3.0
+    /// (claimed), …`; `None` for unknown names.
+    pub fn pair_line(&self, action: &str, state: &str) -> Option<String> {
+        let curve = self.pair(Context::ALL, action, state)?;
+        let mut shown: Vec<usize> = [1, 5, 10]
+            .into_iter()
+            .filter(|&h| h <= self.horizon)
+            .collect();
+        if !shown.contains(&self.horizon) {
+            shown.push(self.horizon);
+        }
+        let parts: Vec<String> = shown
+            .iter()
+            .map(|&h| {
+                let p = &curve[h - 1];
+                format!(
+                    "h={h} spread {:.2e} / error {:.2e} = {:.2} ({})",
+                    p.effect,
+                    p.floor,
+                    p.score,
+                    if p.drives { "claimed" } else { "not claimed" }
+                )
+            })
+            .collect();
+        Some(format!(
+            "{action} → {state} (all states): {}",
+            parts.join(", ")
+        ))
+    }
+}
+
+/// Pairs drawn in the score figure besides the magnet's effect on the cube's height.
+const FIGURE_PAIRS: usize = 5;
+
+/// The paper's multi-step finding: turning the magnet on is followed by lifting the cube.
+pub const MAGNET_PAIR: (&str, &str) = ("a_mgt", "o_z");
+
+/// Writes `multistep_scores.png/svg` (score vs horizon of the strongest pairs and of
+/// a_mgt → o_z, bars = the 95 % bootstrap interval) and, where the data has a magnet,
+/// `multistep_a_mgt_o_z.png/svg` (its spread per context beside the chained error on o_z):
+/// what the report shows of the multi-step effects. Returns the PNG paths.
+pub fn draw_figures(result: &MultiStep, dir: &Path) -> Result<Vec<PathBuf>> {
+    let label =
+        |a: usize, s: usize| format!("{} → {}", result.action_names[a], result.state_names[s]);
+    let mut pairs = result.strongest_pairs(FIGURE_PAIRS);
+    let magnet = (
+        result.action_names.iter().position(|n| n == MAGNET_PAIR.0),
+        result.state_names.iter().position(|n| n == MAGNET_PAIR.1),
+    );
+    if let (Some(a), Some(s)) = magnet
+        && !pairs.contains(&(a, s))
+    {
+        pairs.push((a, s));
+    }
+    let curves: Vec<causal_arm_plots::Curve> = pairs
+        .iter()
+        .filter_map(|&(a, s)| {
+            let curve = result.pair(
+                Context::ALL,
+                &result.action_names[a],
+                &result.state_names[s],
+            )?;
+            Some(causal_arm_plots::Curve {
+                label: label(a, s),
+                points: curve
+                    .iter()
+                    .map(|p| {
+                        let half = (p.interval[1] - p.interval[0]) / 2.0;
+                        (p.horizon as f64, p.score, half)
+                    })
+                    .collect(),
+            })
+        })
+        .collect();
+    let stem = dir.join("multistep_scores");
+    causal_arm_plots::curves_with_error_bars(
+        &stem,
+        &format!(
+            "CAI through the chained FM (verdict: lower bound > {})",
+            result.settings.kappa
+        ),
+        "horizon h of s(t+h)",
+        "mean effect / chained h-step error",
+        &curves,
+    )?;
+    let mut written = vec![stem.with_extension("png")];
+    if let (Some(_), Some(_)) = magnet {
+        written.push(draw_magnet(result, dir)?);
+    }
+    Ok(written)
+}
+
+/// The a_mgt → o_z figure: mean spread of the predicted cube height per context and the
+/// chained model's error on it over all states, against the horizon.
+fn draw_magnet(result: &MultiStep, dir: &Path) -> Result<PathBuf> {
+    let (action, state) = MAGNET_PAIR;
+    let mut curves = Vec::new();
+    for context in [Context::ALL, "holding", "not_holding"] {
+        if let Some(curve) = result.pair(context, action, state) {
+            curves.push(causal_arm_plots::Curve {
+                label: format!("spread, {context}"),
+                points: curve
+                    .iter()
+                    .map(|p| (p.horizon as f64, p.effect, 0.0))
+                    .collect(),
+            });
+        }
+    }
+    if let Some(curve) = result.pair(Context::ALL, action, state) {
+        curves.push(causal_arm_plots::Curve {
+            label: "chained FM error, all".into(),
+            points: curve
+                .iter()
+                .map(|p| (p.horizon as f64, p.floor, 0.0))
+                .collect(),
+        });
+    }
+    let stem = dir.join("multistep_a_mgt_o_z");
+    causal_arm_plots::curves_with_error_bars(
+        &stem,
+        &format!("{action} → {state} through the chained FM"),
+        "horizon h of s(t+h)",
+        "m",
+        &curves,
+    )?;
+    Ok(stem.with_extension("png"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use causal_arm_dataset::Experiment;
+    use causal_arm_mlp::{Head, MlpSpec, Regressor, TrainConfig};
+    use causal_arm_trainer::fit::FitSettings;
+    use causal_arm_trainer::problems::{FmTarget, forward_model};
+    use causal_arm_trainer::{LoadedModel, ModelMeta, ProblemInfo};
+    use safetensors::{Dtype, tensor::TensorView};
+
+    const THETA0: usize = 9;
+    const EF_X: usize = 16;
+    const O_Z: usize = 2;
+    const A0: usize = 23;
+
+    /// The toy world both the data and the model follow: θ0 += tanh(a0), ef_x += tanh(θ0),
+    /// nothing else moves. a0 reaches ef_x only through θ0: one step later.
+    fn step(s: &[f32], a: &[f32]) -> Vec<f32> {
+        let mut next = s.to_vec();
+        next[THETA0] += a[0].tanh();
+        next[EF_X] += s[THETA0].tanh();
+        next
+    }
+
+    /// Exp-2 rows in two episodes of 30 steps, the second starting far from where the first
+    /// ends and missing its step 12 (a dropped message: the state jumps over the hole).
+    fn episodes() -> Dataset {
+        let mut data = Dataset {
+            experiment: Experiment::Exp2,
+            action_source: Default::default(),
+            states: Vec::new(),
+            actions: Vec::new(),
+            next_states: Vec::new(),
+            episodes: Vec::new(),
+            holding: Vec::new(),
+            steps: Vec::new(),
+            stamps_ns: Vec::new(),
+            sources: Vec::new(),
+        };
+        for episode in 0..2u32 {
+            let mut s = vec![0.0f32; 23];
+            s[O_Z] = 0.775;
+            s[THETA0] = if episode == 0 { 0.1 } else { 1.5 };
+            for t in 0..30u32 {
+                let mut a = vec![0.0f32; 8];
+                for (j, v) in a.iter_mut().take(7).enumerate() {
+                    *v = 0.05 * ((t * 7 + j as u32 + 13 * episode) as f32 * 0.77).sin();
+                }
+                let next = step(&s, &a);
+                if !(episode == 1 && t == 12) {
+                    data.states.extend(&s);
+                    data.actions.extend(&a);
+                    data.next_states.extend(&next);
+                    data.episodes.push(episode);
+                    data.holding.push(0);
+                    data.steps.push(t);
+                    data.stamps_ns.push(t as u64);
+                }
+                s = next;
+            }
+        }
+        data
+    }
+
+    fn f32_bytes(v: &[f32]) -> Vec<u8> {
+        v.iter().flat_map(|x| x.to_le_bytes()).collect()
+    }
+
+    /// A forward model that is exactly [`step`] (up to the fast tanh): hidden unit 0 =
+    /// tanh(a0) into Δθ0, unit 1 = tanh(θ0) into Δef_x, no other weight.
+    fn toy_model(data: &Dataset) -> Explainer {
+        let problem = forward_model(data, FmTarget::Delta);
+        let spec = MlpSpec {
+            inputs: 31,
+            hidden: vec![2],
+            heads: problem
+                .heads
+                .iter()
+                .map(|h| Head {
+                    name: h.name.clone(),
+                    size: h.len,
+                })
+                .collect(),
+        };
+        let mut w0 = vec![0.0f32; 2 * 31];
+        w0[A0] = 1.0;
+        w0[31 + THETA0] = 1.0;
+        let mut w1 = vec![0.0f32; 23 * 2];
+        w1[THETA0 * 2] = 1.0;
+        w1[EF_X * 2 + 1] = 1.0;
+        let tensors: Vec<(String, Vec<usize>, Vec<u8>)> = vec![
+            ("layers.0.weight".into(), vec![2, 31], f32_bytes(&w0)),
+            ("layers.0.bias".into(), vec![2], f32_bytes(&[0.0; 2])),
+            ("layers.1.weight".into(), vec![23, 2], f32_bytes(&w1)),
+            ("layers.1.bias".into(), vec![23], f32_bytes(&[0.0; 23])),
+            ("input.mean".into(), vec![31], f32_bytes(&[0.0; 31])),
+            ("input.std".into(), vec![31], f32_bytes(&[1.0; 31])),
+            ("output.mean".into(), vec![23], f32_bytes(&[0.0; 23])),
+            ("output.std".into(), vec![23], f32_bytes(&[1.0; 23])),
+        ];
+        let views = tensors.iter().map(|(n, shape, bytes)| {
+            (
+                n.clone(),
+                TensorView::new(Dtype::F32, shape.clone(), bytes).unwrap(),
+            )
+        });
+        let path = std::env::temp_dir().join(format!(
+            "causal-arm-multistep-{}-{:?}.safetensors",
+            std::process::id(),
+            std::thread::current().id()
+        ));
+        safetensors::serialize_to_file(views, None, &path).unwrap();
+        let regressor = Regressor::load(spec.clone(), &path).unwrap();
+        let _ = std::fs::remove_file(&path);
+        let meta = ModelMeta {
+            name: "fm".into(),
+            experiment: "exp2".into(),
+            architecture: spec,
+            problem: ProblemInfo::from(&problem),
+            input_mean: vec![0.0; 31],
+            input_std: vec![1.0; 31],
+            output_mean: vec![0.0; 23],
+            output_std: vec![1.0; 23],
+            training: FitSettings {
+                hidden: vec![2],
+                train: TrainConfig::default(),
+                epochs: 0,
+            },
+            trained_on: "hand-made".into(),
+            sources: vec![],
+        };
+        Explainer::new(LoadedModel { meta, regressor }).unwrap()
+    }
+
+    fn settings() -> InfluenceSettings {
+        InfluenceSettings {
+            observations: 20,
+            resamples: 8,
+            error_rows: 1000,
+            bootstrap: 50,
+            ..InfluenceSettings::default()
+        }
+    }
+
+    #[test]
+    fn chains_stay_inside_episodes_and_skip_holes() {
+        let data = episodes();
+        // Episode 0: rows 0..30; episode 1: steps 0..=11 at rows 30..42, 13..=29 at 42..59.
+        let reach = chain_reach(&data);
+        assert_eq!(reach[0], 30);
+        assert_eq!(reach[29], 1, "the last row of episode 0 reaches no further");
+        assert_eq!((reach[30], reach[41]), (12, 1), "the hole ends the chain");
+        assert_eq!((reach[42], reach[58]), (17, 1));
+        let rows = chainable_rows(&data, 5);
+        assert!(rows.iter().all(|&r| reach[r] >= 5));
+        assert!(!rows.contains(&26) && rows.contains(&25) && !rows.contains(&38));
+
+        // The data follows the model's own dynamics: chained along an episode with the
+        // recorded actions, the model is exact at every horizon. One chain across an episode
+        // or a hole would cost an error of order 1.
+        let explainer = toy_model(&data);
+        let floors = chained_error_floors(&explainer, &data, &settings(), 10).unwrap();
+        assert_eq!(floors.len(), 10);
+        for (h, f) in floors.iter().enumerate() {
+            for k in [THETA0, EF_X] {
+                assert!(
+                    f.per_context[0][k] < 1e-5,
+                    "h={} k={k}: {}",
+                    h + 1,
+                    f.per_context[0][k]
+                );
+            }
+        }
+        let effects = chained_cai_effects(&explainer, &data, &settings(), 10).unwrap();
+        assert!(effects[0].rows.iter().all(|&r| reach[r] >= 10));
+    }
+
+    #[test]
+    fn an_action_reaches_a_feature_only_through_the_chain_and_never_where_no_path_exists() {
+        let data = episodes();
+        let explainer = toy_model(&data);
+        let result = multistep_cai(&explainer, &data, &settings(), 4).unwrap();
+        assert_eq!(
+            result
+                .horizons
+                .iter()
+                .map(|h| h.horizon)
+                .collect::<Vec<_>>(),
+            vec![1, 2, 3, 4]
+        );
+        let effect = |h: usize, a: usize, k: usize| result.horizons[h - 1].mean_effect[0][a][k];
+        for h in 1..=4 {
+            assert!(effect(h, 0, THETA0) > 1e-3, "a0 → θ0 at h={h}");
+            assert_eq!(effect(h, 0, O_Z), 0.0, "a0 → o_z at h={h}");
+            for a in 1..8 {
+                for k in 0..23 {
+                    assert_eq!(effect(h, a, k), 0.0, "a{a} → {k} at h={h}");
+                }
+            }
+            let claims = &result.horizons[h - 1].claims[0];
+            assert_eq!(claims.horizon, h);
+            assert!(claims.drives[0][THETA0] && !claims.drives[0][O_Z]);
+            assert_eq!(claims.drives[0][EF_X], h >= 2, "a0 → ef_x at h={h}");
+        }
+        // a0 moves ef_x only once θ0 has moved: not at h = 1, from h = 2 on.
+        assert!(effect(1, 0, EF_X) < 1e-6, "{}", effect(1, 0, EF_X));
+        assert!(effect(2, 0, EF_X) > 1e-3);
+        let line = result.pair_line("a_mgt", "o_z").unwrap();
+        assert!(line.starts_with("a_mgt → o_z (all states): h=1 "), "{line}");
+        assert!(
+            line.contains("h=4 ") && line.contains("not claimed"),
+            "{line}"
+        );
+    }
+
+    #[test]
+    fn horizons_outside_one_to_ten_and_short_data_are_refused() {
+        let data = episodes();
+        let explainer = toy_model(&data);
+        for bad in [0, 11] {
+            let err = chained_cai_effects(&explainer, &data, &settings(), bad).unwrap_err();
+            assert!(err.to_string().contains("1 to 10 steps"), "{err}");
+        }
+        let many = InfluenceSettings {
+            observations: 50,
+            ..settings()
+        };
+        let err = chained_cai_effects(&explainer, &data, &many, 10).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("start 10 consecutive transitions inside an episode"),
+            "{err}"
+        );
+    }
+}

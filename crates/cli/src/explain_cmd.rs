@@ -10,6 +10,7 @@ use causal_arm_explainer::influence::{
     ErrorFloors, InfluenceSettings, Rule, agreement_effects, cai_effects, claims_by_context,
     holdout_effects,
 };
+use causal_arm_explainer::multistep;
 use causal_arm_explainer::output::write_all;
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
 use causal_arm_explainer::{BackgroundKind, Explainer, Method, Settings, calibrated_relevance};
@@ -81,6 +82,11 @@ pub struct ExplainArgs {
     /// CAI: draws of each action from its marginal per observation.
     #[arg(long, default_value_t = InfluenceSettings::default().resamples)]
     resamples: usize,
+    /// With --method cai: attribute a(t) on s(t+1) … s(t+K) through the forward model
+    /// chained K steps (1–10) with the recorded actions after a(t); writes multistep.json
+    /// and scores every horizon against the truth's matrix at that horizon.
+    #[arg(long)]
+    horizon: Option<usize>,
     /// Output directory (default: MODEL/explain-<method>).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -168,6 +174,9 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
         .as_deref()
         .map(causal_arm_truth::load)
         .transpose()?;
+    if let Some(horizon) = args.horizon {
+        return run_multistep(args, truth.as_ref(), horizon);
+    }
     if ["cai", "agreement", "holdout"].contains(&args.method.as_str()) {
         return run_influence(args, truth.as_ref());
     }
@@ -397,5 +406,96 @@ fn finish_claims(
     std::fs::write(&path, serde_json::to_string_pretty(&rows)?)
         .with_context(|| format!("cannot write {}", path.display()))?;
     eprintln!("wrote {}", path.display());
+    Ok(())
+}
+
+/// `causal-arm explain --method cai --horizon K`: CAI through the forward model chained K
+/// steps, verdicts per horizon and context, scored against the truth's matrix at each
+/// horizon; a horizon the truth lacks is refused before any chaining.
+fn run_multistep(args: &ExplainArgs, truth: Option<&Truth>, horizon: usize) -> anyhow::Result<()> {
+    if args.method != "cai" {
+        anyhow::bail!(
+            "--horizon attributes through the chained forward model with CAI; use it with --method cai, not {:?}",
+            args.method
+        );
+    }
+    multistep::check_horizon(horizon)?;
+    if let Some(truth) = truth {
+        causal_arm_truth::check_horizon(truth, horizon)?;
+        for h in 1..horizon {
+            causal_arm_truth::check_horizon(truth, h)?;
+        }
+    }
+    let (explainer, data) = load(args, truth)?;
+    let settings = influence_settings(args);
+    let result = multistep::multistep_cai(&explainer, &data, &settings, horizon)?;
+    println!(
+        "{} cai through the FM chained {horizon} steps ({}/{}): {} observations × {} resamples per action, {} chainable rows, {:.2} s",
+        explainer.experiment(),
+        args.model.display(),
+        args.name,
+        result.observations,
+        settings.resamples,
+        result.chainable_rows,
+        result.seconds
+    );
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| args.model.join(format!("explain-cai-h{horizon}")));
+    let claims: Vec<EdgeClaims> = result.claims().cloned().collect();
+    let rows = match truth {
+        Some(truth) => causal_arm_truth::score_horizons(truth, &claims)?,
+        None => Vec::new(),
+    };
+    write_multistep(&out, &result, &rows)?;
+    for h in &result.horizons {
+        let all = &h.claims[0];
+        let claimed = all.drives.iter().flatten().filter(|&&d| d).count();
+        println!("h={:<2} {claimed} edges claimed over all states", h.horizon);
+    }
+    if let (Some(truth), Some(path)) = (truth, &args.truth) {
+        println!(
+            "scored against {} ({} states) per horizon, all states and all pairs (per block and context in multistep.json):",
+            path.display(),
+            truth.one_step().states
+        );
+        let shown: Vec<_> = rows
+            .iter()
+            .filter(|r| r.context == "all" && r.block == "all")
+            .cloned()
+            .collect();
+        print!("{}", score_table(&shown));
+    }
+    let (action, state) = multistep::MAGNET_PAIR;
+    if let Some(line) = result.pair_line(action, state) {
+        println!("{line}");
+    }
+    Ok(())
+}
+
+/// Writes `multistep.json` (per horizon: effects, error floors, verdicts and, with a truth,
+/// their scores) and the figures into `out`.
+fn write_multistep(
+    out: &Path,
+    result: &multistep::MultiStep,
+    rows: &[causal_arm_truth::ScoreRow],
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut json = serde_json::to_value(result)?;
+    if let Some(horizons) = json["horizons"].as_array_mut() {
+        for h in horizons {
+            let k = h["horizon"].as_u64().unwrap_or(0) as usize;
+            let scores: Vec<_> = rows.iter().filter(|r| r.horizon == k).collect();
+            h["scores"] = serde_json::to_value(scores)?;
+        }
+    }
+    let path = out.join("multistep.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&json)?)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    eprintln!("wrote {}", path.display());
+    for png in multistep::draw_figures(result, out)? {
+        eprintln!("wrote {} and .svg", png.display());
+    }
     Ok(())
 }

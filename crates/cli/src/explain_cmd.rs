@@ -211,18 +211,20 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
         explanation.seconds,
         explanation.efficiency_error()
     );
-    println!("state feature  verdict                      score  strongest action");
+    println!(
+        "state feature  verdict ({:<10})     score  driven by            mean |SHAP| / change std, strongest",
+        report.decision_method
+    );
     for v in &report.states {
         println!(
-            "{:<14} {:<26} {:>9.2e}  {}",
+            "{:<14} {:<26} {:>9.2}  {:<20} {:>9.2e} {}",
             v.name,
             v.verdict(),
+            v.decision_score,
+            v.driven_by.first().map(String::as_str).unwrap_or("-"),
             v.score,
             v.strongest_action
         );
-    }
-    for a in &report.actions {
-        println!("{:<6} drives {}", a.name, a.drives.join(", "));
     }
     if report.unaffected.is_empty() {
         println!("every state feature is driven by some action");
@@ -281,6 +283,30 @@ fn shap_and_cai_claims(
         args.threshold,
         &influence_settings(args),
     )?)
+}
+
+/// A heat map of `claims`' verdicts (1 = the action is claimed to drive the feature).
+fn draw_verdicts(stem: &Path, claims: &EdgeClaims) -> anyhow::Result<()> {
+    let values: Vec<f64> = claims
+        .drives
+        .iter()
+        .flatten()
+        .map(|&d| if d { 1.0 } else { 0.0 })
+        .collect();
+    causal_arm_plots::heatmap(
+        stem,
+        &format!(
+            "{}: which action drives which s(t+1) (1 = claimed)",
+            claims.method
+        ),
+        &claims.action_names,
+        &claims.state_names,
+        &values,
+        "claimed",
+        causal_arm_plots::HeatmapScale::Linear,
+    )?;
+    eprintln!("wrote {}.png and {}.svg", stem.display(), stem.display());
+    Ok(())
 }
 
 /// `causal-arm explain --method cai|agreement`: influence of every action on the forward
@@ -362,27 +388,16 @@ fn finish_claims(
             );
         }
     }
-    if let Some(first) = claims.first() {
-        let stem = out.join("verdicts_heatmap");
-        let values: Vec<f64> = first
-            .drives
-            .iter()
-            .flatten()
-            .map(|&d| if d { 1.0 } else { 0.0 })
-            .collect();
-        causal_arm_plots::heatmap(
-            &stem,
-            &format!(
-                "{}: which action drives which s(t+1) (1 = claimed)",
-                first.method
-            ),
-            &first.action_names,
-            &first.state_names,
-            &values,
-            "claimed",
-            causal_arm_plots::HeatmapScale::Linear,
-        )?;
-        eprintln!("wrote {}.png and {}.svg", stem.display(), stem.display());
+    // The default claims as verdicts_heatmap, every method's all-states claims beside it.
+    let all_states = claims
+        .iter()
+        .filter(|c| c.context == "all" && c.horizon == 1);
+    for (i, c) in all_states.enumerate() {
+        let file = match i {
+            0 => "verdicts_heatmap".to_owned(),
+            _ => format!("verdicts_{}", c.method.replace(['/', '+'], "_")),
+        };
+        draw_verdicts(&out.join(file), c)?;
     }
     let (Some(truth), Some(truth_path)) = (truth, &args.truth) else {
         return Ok(());

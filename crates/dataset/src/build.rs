@@ -368,18 +368,13 @@ pub fn from_bag(
 
     let period = all[1].stamp - all[0].stamp;
     let width = state_names(experiment).len();
-    let mut data = Dataset {
-        experiment,
-        action_source,
-        states: Vec::with_capacity(all.len() * width),
-        actions: Vec::new(),
-        next_states: Vec::with_capacity(all.len() * width),
-        episodes: Vec::with_capacity(all.len()),
-        holding: Vec::with_capacity(all.len()),
-        steps: Vec::with_capacity(all.len()),
-        stamps_ns: Vec::with_capacity(all.len()),
-        sources: Vec::new(),
-    };
+    let mut data = Dataset::empty(experiment, action_source);
+    data.states.reserve(all.len() * width);
+    data.next_states.reserve(all.len() * width);
+    data.episodes.reserve(all.len());
+    data.holding.reserve(all.len());
+    data.steps.reserve(all.len());
+    data.stamps_ns.reserve(all.len());
     for pair in all.windows(2) {
         let (now, next) = (&pair[0], &pair[1]);
         let dt = next.stamp - now.stamp;

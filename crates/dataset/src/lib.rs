@@ -82,6 +82,23 @@ pub struct Dataset {
 }
 
 impl Dataset {
+    /// A dataset with no rows, to be filled row by row (the bag decoder, hand-made test
+    /// data).
+    pub fn empty(experiment: Experiment, action_source: ActionSource) -> Self {
+        Self {
+            experiment,
+            action_source,
+            states: Vec::new(),
+            actions: Vec::new(),
+            next_states: Vec::new(),
+            episodes: Vec::new(),
+            holding: Vec::new(),
+            steps: Vec::new(),
+            stamps_ns: Vec::new(),
+            sources: Vec::new(),
+        }
+    }
+
     /// Number of transitions.
     pub fn rows(&self) -> usize {
         self.episodes.len()

@@ -1012,18 +1012,7 @@ mod tests {
 
     /// Exp-2 rows: magnet off with a_mgt ∈ {0, +1}, magnet on with a_mgt ∈ {0, −1}.
     fn magnet_rows() -> Dataset {
-        let mut data = Dataset {
-            experiment: causal_arm_dataset::Experiment::Exp2,
-            action_source: Default::default(),
-            states: Vec::new(),
-            actions: Vec::new(),
-            next_states: Vec::new(),
-            episodes: Vec::new(),
-            holding: Vec::new(),
-            steps: Vec::new(),
-            stamps_ns: Vec::new(),
-            sources: Vec::new(),
-        };
+        let mut data = Dataset::empty(causal_arm_dataset::Experiment::Exp2, Default::default());
         for (i, (mgt, command)) in [(0.0, 0.0), (0.0, 1.0), (1.0, 0.0), (1.0, -1.0)]
             .into_iter()
             .cycle()

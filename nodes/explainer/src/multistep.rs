@@ -592,18 +592,7 @@ mod tests {
     /// Exp-2 rows in two episodes of 30 steps, the second starting far from where the first
     /// ends and missing its step 12 (a dropped message: the state jumps over the hole).
     fn episodes() -> Dataset {
-        let mut data = Dataset {
-            experiment: Experiment::Exp2,
-            action_source: Default::default(),
-            states: Vec::new(),
-            actions: Vec::new(),
-            next_states: Vec::new(),
-            episodes: Vec::new(),
-            holding: Vec::new(),
-            steps: Vec::new(),
-            stamps_ns: Vec::new(),
-            sources: Vec::new(),
-        };
+        let mut data = Dataset::empty(Experiment::Exp2, Default::default());
         for episode in 0..2u32 {
             let mut s = vec![0.0f32; 23];
             s[O_Z] = 0.775;
@@ -640,14 +629,7 @@ mod tests {
         let spec = MlpSpec {
             inputs: 31,
             hidden: vec![2],
-            heads: problem
-                .heads
-                .iter()
-                .map(|h| Head {
-                    name: h.name.clone(),
-                    size: h.len,
-                })
-                .collect(),
+            heads: problem.heads.iter().map(Head::from).collect(),
         };
         let mut w0 = vec![0.0f32; 2 * 31];
         w0[A0] = 1.0;

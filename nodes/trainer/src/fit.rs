@@ -187,14 +187,7 @@ pub fn fit(
     let spec = MlpSpec {
         inputs: n_in,
         hidden: settings.hidden.clone(),
-        heads: problem
-            .heads
-            .iter()
-            .map(|h| Head {
-                name: h.name.clone(),
-                size: h.len,
-            })
-            .collect(),
+        heads: problem.heads.iter().map(Head::from).collect(),
     };
     let mut fitter = Fitter::new(Mlp::new(spec, seed)?, settings.train.clone())?;
     fitter.plan_batches(fitter.batches_for(settings.epochs, rows.len()));

@@ -32,6 +32,15 @@ impl From<&FeatureGroup> for HeadInfo {
     }
 }
 
+impl From<&HeadInfo> for causal_arm_mlp::Head {
+    fn from(h: &HeadInfo) -> Self {
+        Self {
+            name: h.name.clone(),
+            size: h.len,
+        }
+    }
+}
+
 /// How the forward model predicts s(t+1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]

@@ -312,18 +312,17 @@ mod tests {
         let names = state_names(Experiment::Exp2);
         let colour: Vec<String> = ["o_R", "o_G", "o_B"].map(String::from).to_vec();
         let (sw, aw, rows) = (names.len(), action_names(Experiment::Exp2).len(), 3);
-        let data = causal_arm_dataset::Dataset {
-            experiment: Experiment::Exp2,
-            action_source: causal_arm_dataset::ActionSource::Realized,
-            states: (0..rows * sw).map(|v| v as f32).collect(),
-            actions: vec![0.0; rows * aw],
-            next_states: (0..rows * sw).map(|v| v as f32 + 0.5).collect(),
-            episodes: vec![0; rows],
-            holding: vec![0; rows],
-            steps: (0..rows as u32).collect(),
-            stamps_ns: (0..rows as u64).collect(),
-            sources: Vec::new(),
-        };
+        let mut data = causal_arm_dataset::Dataset::empty(
+            Experiment::Exp2,
+            causal_arm_dataset::ActionSource::Realized,
+        );
+        data.states = (0..rows * sw).map(|v| v as f32).collect();
+        data.actions = vec![0.0; rows * aw];
+        data.next_states = (0..rows * sw).map(|v| v as f32 + 0.5).collect();
+        data.episodes = vec![0; rows];
+        data.holding = vec![0; rows];
+        data.steps = (0..rows as u32).collect();
+        data.stamps_ns = (0..rows as u64).collect();
         let fm = crate::problems::forward_model(&data, FmTarget::Delta);
         let r = reduce(&fm, &colour).unwrap();
         assert_eq!(r.output_names.len(), names.len() - 3);

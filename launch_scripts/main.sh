@@ -52,6 +52,9 @@ $BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method deep --tru
 $BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method kernel --no-pair-plots --truth models/quick_exp2/truth
 $BIN explain --model models/quick_exp1 --bag bags/quick_exp1 --method kernel --no-pair-plots --truth models/quick_exp1/truth
 
+echo "==> multi-step edges: CAI through the exp2 FM chained 3 steps, scored against the truth at each horizon"
+$BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method cai --horizon 3 --truth models/quick_exp2/truth
+
 echo "==> the explainer node's latched /explainer/relevance report over DDS (state features no action affects)"
 tests/netns-run bash -c '
   export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-7}" RUST_LOG="${RUST_LOG:-warn}"
@@ -69,3 +72,4 @@ echo "    mental simulation:        models/quick_exp1/mental_simulation.png"
 echo "    SHAP heat map and PDPs:   models/quick_exp2/explain-deep/{heatmap,pdp_grid}.png, pdp/"
 echo "    relevance report:         models/quick_exp2/explain-{deep,kernel}/relevance.{json,csv}"
 echo "    causal truth + scores:    models/quick_exp{1,2}/truth/truth.{json,csv,heatmap.png}, models/quick_exp2/explain-*/scores.json"
+echo "    multi-step edges:         models/quick_exp2/explain-cai-h3/multistep.json, multistep_*.png"

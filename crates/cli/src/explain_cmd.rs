@@ -212,8 +212,11 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
         explanation.efficiency_error()
     );
     println!(
-        "state feature  verdict ({:<10})     score  driven by            mean |SHAP| / change std, strongest",
-        report.decision_method
+        "{:<14} {:<26} {:>9}  {:<20} mean |SHAP| / change std, strongest",
+        "state feature",
+        format!("verdict ({})", report.decision_method),
+        "score",
+        "driven by"
     );
     for v in &report.states {
         println!(

@@ -517,40 +517,53 @@ pub fn threshold_claims_by_context(
 ) -> Vec<EdgeClaims> {
     let scale = crate::change_scale(data);
     let reader = ContextReader::new(data.experiment);
-    let (na, ns) = (effects.n_action, effects.n_state);
     Context::of(data.experiment)
         .iter()
         .map(|context| {
             let members = effects.members(data, &reader, context);
-            let n = members.len().max(1) as f64;
-            let score: Vec<Vec<f64>> = (0..na)
-                .map(|a| {
-                    (0..ns)
-                        .map(|k| {
-                            let mean =
-                                members.iter().map(|&o| effects.at(o, a, k)).sum::<f64>() / n;
-                            if scale[k] > 0.0 { mean / scale[k] } else { 0.0 }
-                        })
-                        .collect()
-                })
-                .collect();
-            EdgeClaims {
-                method: effects.method.clone(),
-                rule: format!("mean |SHAP| >= {threshold} x std of the one-step change"),
-                context: context.name.to_owned(),
-                horizon: 1,
-                observations: members.len(),
-                action_names: explainer.action_names().to_vec(),
-                state_names: explainer.state_names().to_vec(),
-                drives: score
-                    .iter()
-                    .map(|row| row.iter().map(|&v| v >= threshold).collect())
-                    .collect(),
-                score,
-                interval: None,
-            }
+            let names = (explainer.action_names(), explainer.state_names());
+            threshold_claims(effects, &members, &scale, threshold, context.name, names)
         })
         .collect()
+}
+
+/// Today's relevance rule on the observations `members`: score = their mean effect / the
+/// std of the feature's one-step change (`scale`), verdict = score ≥ `threshold`; no
+/// interval (see [`crate::verdicts`] for one).
+pub(crate) fn threshold_claims(
+    effects: &Effects,
+    members: &[usize],
+    scale: &[f64],
+    threshold: f64,
+    context: &str,
+    (actions, states): (&[String], &[String]),
+) -> EdgeClaims {
+    let n = members.len().max(1) as f64;
+    let score: Vec<Vec<f64>> = (0..effects.n_action)
+        .map(|a| {
+            (0..effects.n_state)
+                .map(|k| {
+                    let mean = members.iter().map(|&o| effects.at(o, a, k)).sum::<f64>() / n;
+                    if scale[k] > 0.0 { mean / scale[k] } else { 0.0 }
+                })
+                .collect()
+        })
+        .collect();
+    EdgeClaims {
+        method: effects.method.clone(),
+        rule: format!("mean |SHAP| >= {threshold} x std of the one-step change"),
+        context: context.to_owned(),
+        horizon: 1,
+        observations: members.len(),
+        action_names: actions.to_vec(),
+        state_names: states.to_vec(),
+        drives: score
+            .iter()
+            .map(|row| row.iter().map(|&v| v >= threshold).collect())
+            .collect(),
+        score,
+        interval: None,
+    }
 }
 
 /// One part of a union of claims, with the rule its verdicts followed: evidence ≥

@@ -11,7 +11,7 @@ use rand::{Rng, SeedableRng};
 
 use crate::influence::{
     Effects, ErrorFloors, InfluenceSettings, Rule, UnionPart, cai_effects, claims_by_context,
-    threshold_claims_by_context, union_claims,
+    threshold_claims, threshold_claims_by_context, union_claims,
 };
 use crate::{ExplainError, Explainer, Explanation, Result};
 
@@ -89,41 +89,15 @@ pub fn shap_claims(
     let effects = explanation.effects();
     let scale = &explanation.state_scale;
     let members: Vec<usize> = (0..effects.rows.len()).collect();
-    let n = members.len().max(1) as f64;
-    let score: Vec<Vec<f64>> = (0..effects.n_action)
-        .map(|a| {
-            (0..effects.n_state)
-                .map(|k| {
-                    let mean = members.iter().map(|&o| at(&effects, o, a, k)).sum::<f64>() / n;
-                    ratio(mean, scale[k])
-                })
-                .collect()
-        })
-        .collect();
-    EdgeClaims {
-        method: effects.method.clone(),
-        rule: format!("mean |SHAP| >= {threshold} x std of the one-step change"),
-        context: Context::ALL.to_owned(),
-        horizon: 1,
-        observations: members.len(),
-        action_names: explanation.action_names().to_vec(),
-        state_names: explanation.state_names().to_vec(),
-        drives: score
-            .iter()
-            .map(|row| row.iter().map(|&v| v >= threshold).collect())
-            .collect(),
-        interval: Some(bootstrap_interval(&effects, &members, scale, settings)),
-        score,
-    }
+    let names = (explanation.action_names(), explanation.state_names());
+    let mut claims = threshold_claims(&effects, &members, scale, threshold, Context::ALL, names);
+    claims.interval = Some(bootstrap_interval(&effects, &members, scale, settings));
+    claims
 }
 
 /// `mean / unit`, 0 where the unit is 0 (a feature the data never changes).
 fn ratio(mean: f64, unit: f64) -> f64 {
     if unit > 0.0 { mean / unit } else { 0.0 }
-}
-
-fn at(effects: &Effects, obs: usize, action: usize, state: usize) -> f64 {
-    effects.values[(obs * effects.n_action + action) * effects.n_state + state]
 }
 
 /// Refuses an explanation whose observations are not rows of `data` (another bag, or the

@@ -6,9 +6,12 @@
 //! 2. an ef head fed θ(t+1) as well, teacher-forced (the true θ(t+1)) in training;
 //!
 //! and measures the ef head's held-out MAE with the true θ(t+1) and with the θ head's
-//! prediction chained in (what a slice-ordered factored FM would do at prediction time).
+//! prediction chained in (what a slice-ordered factored FM would do at prediction time);
+//! 3. an ef head on its parents only (no a6) that also predicts θ0..θ5(t+1) as auxiliary
+//!    outputs, to see whether the full network's edge is the other head's supervision.
 //!
-//! `cargo run --release -p causal_arm_trainer --example slice_parents -- BAG [EPOCHS] [SEED]`
+//! `cargo run --release -p causal_arm_trainer --example slice_parents -- BAG [EPOCHS] [SEED] [aux]`
+//! (`aux`: experiment 3 only)
 
 use anyhow::{Context, bail};
 use causal_arm_dataset::{ActionSource, Cache, Experiment, load_bags};
@@ -17,6 +20,7 @@ use causal_arm_trainer::fit::{
     FitSettings, FitWatch, Progress, fit, folds, head_mae, predict, take_rows, training_rows,
 };
 use causal_arm_trainer::problems::{FmTarget, Problem, forward_model, theta_columns};
+use causal_arm_trainer::structure::reduce;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -28,6 +32,7 @@ fn main() -> anyhow::Result<()> {
         .map_or(Ok(60), |e| e.parse())
         .context("EPOCHS")?;
     let seed: u64 = args.get(2).map_or(Ok(0), |s| s.parse()).context("SEED")?;
+    let only_aux = args.get(3).is_some_and(|m| m == "aux");
     let cache = Cache::new(Cache::default_dir());
     let (data, _) = load_bags(
         &[bag.into()],
@@ -57,6 +62,9 @@ fn main() -> anyhow::Result<()> {
         Some((&data.next_states, data.state_width(), &theta)),
     );
     let mut quiet = |_: Progress| {};
+    if only_aux {
+        return auxiliary(&fm, &train, &test, &settings, seed);
+    }
     let theta_model = fit(
         &theta_problem,
         &train,
@@ -110,7 +118,70 @@ fn main() -> anyhow::Result<()> {
         "ef head fed the predicted theta(t+1): ef MAE {:.3e} m (chained)",
         ef_mae(&chained_inputs)?
     );
+    auxiliary(&fm, &train, &test, &settings, seed)
+}
+
+/// The ef head on its parents only (a6 does not drive ef) that also predicts θ0..θ5(t+1)
+/// as auxiliary outputs (θ6(t+1) needs a6, so it would be noise here): only the ef figure
+/// is this head's.
+fn auxiliary(
+    fm: &Problem,
+    train: &[usize],
+    test: &[usize],
+    settings: &FitSettings,
+    seed: u64,
+) -> anyhow::Result<()> {
+    let aux = without_output(&reduce(fm, &["a6".to_owned()])?, "theta6_next");
+    let mut quiet = |_: Progress| {};
+    let model = fit(&aux, train, settings, seed, "ef+aux", watch(&mut quiet))?;
+    let p = predict(
+        &model,
+        &take_rows(&aux.inputs, aux.input_names.len(), test),
+        aux.offset_columns.as_deref(),
+        &aux.heads,
+    )?;
+    let truth = take_rows(&aux.truth, aux.output_names.len(), test);
+    let mae = head_mae(&p, &truth, &aux.heads);
+    let ef_at = aux
+        .heads
+        .iter()
+        .position(|h| h.name == "ef")
+        .expect("ef head");
+    println!(
+        "ef head on its parents, theta0..5(t+1) as auxiliary outputs: ef MAE {:.3e} m",
+        mae[ef_at]
+    );
     Ok(())
+}
+
+/// `problem` without the output column `name` (its head shrinks by one).
+fn without_output(problem: &Problem, name: &str) -> Problem {
+    let n_out = problem.output_names.len();
+    let gone = problem
+        .output_names
+        .iter()
+        .position(|n| n == name)
+        .expect("output");
+    let keep = |m: &[f32]| -> Vec<f32> {
+        m.chunks_exact(n_out)
+            .flat_map(|row| (0..n_out).filter(|&c| c != gone).map(|c| row[c]))
+            .collect()
+    };
+    let mut out = problem.clone();
+    out.truth = keep(&problem.truth);
+    out.offset = problem.offset.as_deref().map(keep);
+    if let Some(cols) = &mut out.offset_columns {
+        cols.remove(gone);
+    }
+    out.output_names.remove(gone);
+    for h in &mut out.heads {
+        if (h.start..h.start + h.len).contains(&gone) {
+            h.len -= 1;
+        } else if h.start > gone {
+            h.start -= 1;
+        }
+    }
+    out
 }
 
 /// A fit without progress output or checkpoints.

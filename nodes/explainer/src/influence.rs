@@ -69,7 +69,12 @@ pub struct Effects {
 
 impl Effects {
     /// Indices of the observations whose s(t) is in `context`.
-    fn members(&self, data: &Dataset, reader: &ContextReader, context: &Context) -> Vec<usize> {
+    pub(crate) fn members(
+        &self,
+        data: &Dataset,
+        reader: &ContextReader,
+        context: &Context,
+    ) -> Vec<usize> {
         (0..self.rows.len())
             .filter(|&o| reader.holds(data, self.rows[o], context))
             .collect()
@@ -315,15 +320,20 @@ pub(crate) fn check(settings: &InfluenceSettings, rows: usize) -> Result<()> {
 /// that never changes within a transition gets an infinite floor: the data shows no action
 /// changing it, whatever a network does with it.
 pub fn feature_error(model: &LoadedModel, data: &Dataset, rows: &[usize]) -> Result<Vec<f64>> {
-    let predicted = model
-        .predict(&forward_inputs(data, rows))
-        .map_err(|e| ExplainError::Options(e.to_string()))?;
+    let predicted = predict_next(model, data, rows)?;
     Ok(error_floor(
         data,
         &predicted,
         rows,
         &crate::change_scale(data),
     ))
+}
+
+/// The model's prediction of s(t+1) for the transitions `rows` (raw units).
+fn predict_next(model: &LoadedModel, data: &Dataset, rows: &[usize]) -> Result<Vec<f32>> {
+    model
+        .predict(&forward_inputs(data, rows))
+        .map_err(|e| ExplainError::Options(e.to_string()))
 }
 
 /// The floor of [`feature_error`] for predictions `predicted` (raw units, one row per entry
@@ -379,36 +389,17 @@ pub fn calibrated_claims(
 ) -> EdgeClaims {
     let (na, ns) = (effects.n_action, effects.n_state);
     let n = members.len().max(1);
-    let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xB007);
-    let draws: Vec<Vec<usize>> = (0..settings.bootstrap)
-        // No draws for a context without observations (no panic; its claims stay empty).
-        .map(|_| {
-            (0..members.len())
-                .map(|_| members[rng.random_range(0..n)])
-                .collect()
-        })
-        .collect();
-    let ratio = |sum: f64, k: usize| {
-        let mean = sum / n as f64;
-        if mean == 0.0 { 0.0 } else { mean / error[k] }
-    };
+    let ratio = |mean: f64, k: usize| if mean == 0.0 { 0.0 } else { mean / error[k] };
+    let interval = bootstrap_interval(effects, members, settings, ratio);
     let mut score = vec![vec![0.0; ns]; na];
-    let mut interval = vec![vec![[0.0; 2]; ns]; na];
     let mut drives = vec![vec![false; ns]; na];
     for a in 0..na {
         for k in 0..ns {
             if members.is_empty() {
                 continue;
             }
-            score[a][k] = ratio(members.iter().map(|&o| effects.at(o, a, k)).sum(), k);
-            let mut boot: Vec<f64> = draws
-                .iter()
-                .map(|d| ratio(d.iter().map(|&o| effects.at(o, a, k)).sum(), k))
-                .collect();
-            boot.sort_by(f64::total_cmp);
-            let q =
-                |p: f64| boot[((p * (boot.len() - 1) as f64).round() as usize).min(boot.len() - 1)];
-            interval[a][k] = [q(0.025), q(0.975)];
+            let sum: f64 = members.iter().map(|&o| effects.at(o, a, k)).sum();
+            score[a][k] = ratio(sum / n as f64, k);
             drives[a][k] = interval[a][k][0] > settings.kappa;
         }
     }
@@ -429,6 +420,50 @@ pub fn calibrated_claims(
     }
 }
 
+/// Seed offset of every bootstrap over observations: the SHAP and CAI intervals of one
+/// context resample the same observations.
+const BOOTSTRAP_SEED: u64 = 0xB007;
+
+/// 95 % bootstrap interval (percentiles 2.5 and 97.5 over `settings.bootstrap` resamples of
+/// the observations `members`) of `ratio(mean effect, state feature)` for every edge,
+/// `[action][state]`; `[0, 0]` without observations.
+pub(crate) fn bootstrap_interval(
+    effects: &Effects,
+    members: &[usize],
+    settings: &InfluenceSettings,
+    ratio: impl Fn(f64, usize) -> f64,
+) -> Vec<Vec<[f64; 2]>> {
+    let (na, ns) = (effects.n_action, effects.n_state);
+    let mut interval = vec![vec![[0.0; 2]; ns]; na];
+    let n = members.len();
+    if n == 0 || settings.bootstrap == 0 {
+        return interval;
+    }
+    let cell = na * ns;
+    let mut rng = StdRng::seed_from_u64(settings.seed ^ BOOTSTRAP_SEED);
+    // boot[edge * draws + d]: the ratio of bootstrap draw d.
+    let draws = settings.bootstrap;
+    let mut boot = vec![0.0; cell * draws];
+    let mut sums = vec![0.0; cell];
+    for d in 0..draws {
+        sums.iter_mut().for_each(|s| *s = 0.0);
+        for _ in 0..n {
+            let o = members[rng.random_range(0..n)];
+            let row = &effects.values[o * cell..(o + 1) * cell];
+            sums.iter_mut().zip(row).for_each(|(s, v)| *s += v);
+        }
+        for (edge, s) in sums.iter().enumerate() {
+            boot[edge * draws + d] = ratio(s / n as f64, edge % ns);
+        }
+    }
+    for (edge, values) in boot.chunks_exact_mut(draws).enumerate() {
+        values.sort_by(f64::total_cmp);
+        let q = |p: f64| values[((p * (draws - 1) as f64).round() as usize).min(draws - 1)];
+        interval[edge / ns][edge % ns] = [q(0.025), q(0.975)];
+    }
+    interval
+}
+
 /// The model's error on every state feature in every context of the data's experiment
 /// ([`feature_error`] over the context's rows of a seeded pool): the floors of
 /// [`Rule::ErrorRatio`], measured once however many effects are judged against them.
@@ -446,6 +481,7 @@ impl ErrorFloors {
         let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
         let pool = sample(&mut rng, data.rows(), settings.error_rows.min(data.rows())).into_vec();
         let reader = ContextReader::new(data.experiment);
+        let scale = crate::change_scale(data);
         let per_context = Context::of(data.experiment)
             .iter()
             .map(|context| {
@@ -454,7 +490,8 @@ impl ErrorFloors {
                     .copied()
                     .filter(|&r| reader.holds(data, r, context))
                     .collect();
-                feature_error(explainer.model(), data, &rows)
+                let predicted = predict_next(explainer.model(), data, &rows)?;
+                Ok(error_floor(data, &predicted, &rows, &scale))
             })
             .collect::<Result<_>>()?;
         Ok(Self { per_context })
@@ -480,7 +517,8 @@ pub fn claims_by_context(
     settings: &InfluenceSettings,
     rule: Rule,
 ) -> Vec<EdgeClaims> {
-    let scale = crate::change_scale(data);
+    // Only the significance rule needs the change scale, a pass over every transition.
+    let scale = matches!(rule, Rule::Significance).then(|| crate::change_scale(data));
     let reader = ContextReader::new(data.experiment);
     let (actions, states) = (explainer.action_names(), explainer.state_names());
     Context::of(data.experiment)
@@ -499,30 +537,10 @@ pub fn claims_by_context(
                     states,
                 ),
                 Rule::Significance => {
-                    significance_claims(effects, &members, &scale, context.name, actions, states)
+                    let scale = scale.as_deref().unwrap_or_default();
+                    significance_claims(effects, &members, scale, context.name, actions, states)
                 }
             }
-        })
-        .collect()
-}
-
-/// Today's relevance rule ([`crate::report`]) in every context: score = mean effect over the
-/// context's observations / the std of the feature's one-step change over the data, verdict
-/// = score ≥ `threshold`. In context `all` these are the relevance report's own claims.
-pub fn threshold_claims_by_context(
-    explainer: &Explainer,
-    data: &Dataset,
-    effects: &Effects,
-    threshold: f64,
-) -> Vec<EdgeClaims> {
-    let scale = crate::change_scale(data);
-    let reader = ContextReader::new(data.experiment);
-    Context::of(data.experiment)
-        .iter()
-        .map(|context| {
-            let members = effects.members(data, &reader, context);
-            let names = (explainer.action_names(), explainer.state_names());
-            threshold_claims(effects, &members, &scale, threshold, context.name, names)
         })
         .collect()
 }

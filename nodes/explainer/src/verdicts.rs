@@ -6,18 +6,12 @@
 
 use causal_arm_dataset::{Context, ContextReader, Dataset};
 use causal_arm_scoring::EdgeClaims;
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
 
 use crate::influence::{
-    Effects, ErrorFloors, InfluenceSettings, Rule, UnionPart, cai_effects, claims_by_context,
-    threshold_claims, threshold_claims_by_context, union_claims,
+    Effects, ErrorFloors, InfluenceSettings, Rule, UnionPart, bootstrap_interval, cai_effects,
+    claims_by_context, threshold_claims, union_claims,
 };
 use crate::{ExplainError, Explainer, Explanation, Result};
-
-/// Seed offset of the bootstrap draws: the one [`crate::influence::calibrated_claims`] uses,
-/// so SHAP and CAI intervals of one context resample the same observations.
-const BOOTSTRAP_SEED: u64 = 0xB007;
 
 /// Name of the default claims of a SHAP run by `method` (`kernel+cai`, `deep+cai`).
 pub fn default_method(method: crate::Method) -> String {
@@ -37,8 +31,7 @@ pub fn shap_and_cai_claims(
 ) -> Result<Vec<EdgeClaims>> {
     check_explained_on(explanation, data)?;
     let effects = explanation.effects();
-    let mut shap = threshold_claims_by_context(explainer, data, &effects, threshold);
-    add_threshold_intervals(&mut shap, &effects, data, settings);
+    let shap = shap_claims_by_context(explainer, data, explanation, &effects, threshold, settings);
     let floors = ErrorFloors::measure(explainer, data, settings)?;
     let rule = Rule::ErrorRatio(&floors);
     let shap_err = claims_by_context(explainer, data, &effects, settings, rule);
@@ -79,7 +72,7 @@ pub fn shap_and_cai_claims(
 
 /// Today's SHAP rule over all of `explanation`'s observations, with bootstrap intervals:
 /// score = mean |SHAP| / std of the feature's one-step change, verdict = score ≥
-/// `threshold` (the claims of `threshold_claims_by_context` in context `all`, from the
+/// `threshold` (the claims of `shap_claims_by_context` in context `all`, from the
 /// explanation alone, for a report made without CAI).
 pub fn shap_claims(
     explanation: &Explanation,
@@ -90,8 +83,50 @@ pub fn shap_claims(
     let scale = &explanation.state_scale;
     let members: Vec<usize> = (0..effects.rows.len()).collect();
     let names = (explanation.action_names(), explanation.state_names());
-    let mut claims = threshold_claims(&effects, &members, scale, threshold, Context::ALL, names);
-    claims.interval = Some(bootstrap_interval(&effects, &members, scale, settings));
+    with_interval(
+        threshold_claims(&effects, &members, scale, threshold, Context::ALL, names),
+        &effects,
+        &members,
+        scale,
+        settings,
+    )
+}
+
+/// Today's SHAP rule in every context of the data's experiment (`all` first), each with the
+/// bootstrap interval of its score over that context's observations; the unit is the
+/// explanation's change scale (measured on `data` when it was made).
+fn shap_claims_by_context(
+    explainer: &Explainer,
+    data: &Dataset,
+    explanation: &Explanation,
+    effects: &Effects,
+    threshold: f64,
+    settings: &InfluenceSettings,
+) -> Vec<EdgeClaims> {
+    let scale = &explanation.state_scale;
+    let reader = ContextReader::new(data.experiment);
+    let names = (explainer.action_names(), explainer.state_names());
+    Context::of(data.experiment)
+        .iter()
+        .map(|context| {
+            let members = effects.members(data, &reader, context);
+            let claims = threshold_claims(effects, &members, scale, threshold, context.name, names);
+            with_interval(claims, effects, &members, scale, settings)
+        })
+        .collect()
+}
+
+/// `claims` of today's SHAP rule with the bootstrap interval of their score (mean effect /
+/// `scale`) over the observations `members`.
+fn with_interval(
+    mut claims: EdgeClaims,
+    effects: &Effects,
+    members: &[usize],
+    scale: &[f64],
+    settings: &InfluenceSettings,
+) -> EdgeClaims {
+    let ratio = |mean: f64, k: usize| ratio(mean, scale[k]);
+    claims.interval = Some(bootstrap_interval(effects, members, settings, ratio));
     claims
 }
 
@@ -122,65 +157,6 @@ fn check_explained_on(explanation: &Explanation, data: &Dataset) -> Result<()> {
     Ok(())
 }
 
-/// Gives every threshold claim set (one per context of the data's experiment, in
-/// [`Context::of`] order) the bootstrap interval of its score over that context's
-/// observations.
-fn add_threshold_intervals(
-    claims: &mut [EdgeClaims],
-    effects: &Effects,
-    data: &Dataset,
-    settings: &InfluenceSettings,
-) {
-    let scale = crate::change_scale(data);
-    let reader = ContextReader::new(data.experiment);
-    for (c, context) in claims.iter_mut().zip(Context::of(data.experiment)) {
-        let members: Vec<usize> = (0..effects.rows.len())
-            .filter(|&o| reader.holds(data, effects.rows[o], &context))
-            .collect();
-        c.interval = Some(bootstrap_interval(effects, &members, &scale, settings));
-    }
-}
-
-/// 95 % bootstrap interval (percentiles 2.5 and 97.5 over `settings.bootstrap` resamples
-/// of the observations `members`) of mean effect / `unit[k]` for every edge, `[action][state]`;
-/// `[0, 0]` without observations.
-fn bootstrap_interval(
-    effects: &Effects,
-    members: &[usize],
-    unit: &[f64],
-    settings: &InfluenceSettings,
-) -> Vec<Vec<[f64; 2]>> {
-    let (na, ns) = (effects.n_action, effects.n_state);
-    let mut interval = vec![vec![[0.0; 2]; ns]; na];
-    let n = members.len();
-    if n == 0 || settings.bootstrap == 0 {
-        return interval;
-    }
-    let cell = na * ns;
-    let mut rng = StdRng::seed_from_u64(settings.seed ^ BOOTSTRAP_SEED);
-    // boot[edge * draws + d]: the ratio of bootstrap draw d.
-    let draws = settings.bootstrap;
-    let mut boot = vec![0.0; cell * draws];
-    let mut sums = vec![0.0; cell];
-    for d in 0..draws {
-        sums.iter_mut().for_each(|s| *s = 0.0);
-        for _ in 0..n {
-            let o = members[rng.random_range(0..n)];
-            let row = &effects.values[o * cell..(o + 1) * cell];
-            sums.iter_mut().zip(row).for_each(|(s, v)| *s += v);
-        }
-        for (edge, s) in sums.iter().enumerate() {
-            boot[edge * draws + d] = ratio(s / n as f64, unit[edge % ns]);
-        }
-    }
-    for (edge, values) in boot.chunks_exact_mut(draws).enumerate() {
-        values.sort_by(f64::total_cmp);
-        let q = |p: f64| values[((p * (draws - 1) as f64).round() as usize).min(draws - 1)];
-        interval[edge / ns][edge % ns] = [q(0.025), q(0.975)];
-    }
-    interval
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -204,7 +180,8 @@ mod tests {
         let e = effects(values, 3);
         let members: Vec<usize> = (0..100).collect();
         let settings = InfluenceSettings::default();
-        let i = bootstrap_interval(&e, &members, &[1.0, 4.0, 0.0], &settings);
+        let unit = [1.0, 4.0, 0.0];
+        let i = bootstrap_interval(&e, &members, &settings, |m, k| ratio(m, unit[k]));
         let [lo, hi] = i[0][0];
         assert!(lo < 49.5 && 49.5 < hi, "{lo} {hi}");
         // Standard error of the mean of 0..99 is ≈ 2.9: the interval spans about ±1.96 of it.
@@ -212,7 +189,7 @@ mod tests {
         assert_eq!(i[0][1], [0.5, 0.5]);
         assert_eq!(i[0][2], [0.0, 0.0]);
         assert_eq!(
-            bootstrap_interval(&e, &[], &[1.0; 3], &settings)[0][0],
+            bootstrap_interval(&e, &[], &settings, |m, _| m)[0][0],
             [0.0, 0.0]
         );
     }

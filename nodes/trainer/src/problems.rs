@@ -125,7 +125,7 @@ impl Problem {
 
 /// Columns `cols` of a row-major matrix of width `width`, concatenated per row with
 /// the columns of the other parts.
-fn concat_columns(rows: usize, parts: &[(&[f32], usize, &[usize])]) -> Vec<f32> {
+pub(crate) fn concat_columns(rows: usize, parts: &[(&[f32], usize, &[usize])]) -> Vec<f32> {
     let width: usize = parts.iter().map(|(_, _, cols)| cols.len()).sum();
     let mut out = Vec::with_capacity(rows * width);
     for r in 0..rows {

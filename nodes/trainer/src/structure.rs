@@ -16,7 +16,7 @@ use causal_arm_dataset::{Experiment, action_names, state_names};
 use serde::Deserialize;
 
 use crate::TrainError;
-use crate::problems::{HeadInfo, Problem};
+use crate::problems::{HeadInfo, Problem, concat_columns};
 
 /// Which actions drive which state features, as an explanation claimed them.
 #[derive(Debug, Clone, PartialEq)]
@@ -125,12 +125,7 @@ fn feature_of(name: &str) -> &str {
 
 /// Columns `cols` of every row of a row-major matrix `width` wide.
 fn columns(data: &[f32], width: usize, cols: &[usize]) -> Vec<f32> {
-    let rows = data.len() / width.max(1);
-    let mut out = Vec::with_capacity(rows * cols.len());
-    for row in data.chunks_exact(width) {
-        out.extend(cols.iter().map(|&c| row[c]));
-    }
-    out
+    concat_columns(data.len() / width.max(1), &[(data, width, cols)])
 }
 
 /// `problem` restricted to the input columns `inputs` and output columns `outputs` (both

@@ -326,6 +326,38 @@ mod tests {
     }
 
     #[test]
+    fn missing_malformed_foreign_and_empty_claim_files_are_refused_by_name() {
+        let dir = std::env::temp_dir().join(format!("structure-load-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let load = |name: &str, text: Option<&str>| {
+            let path = dir.join(name);
+            if let Some(text) = text {
+                std::fs::write(&path, text).unwrap();
+            }
+            FoundGraph::load(&path, Experiment::Exp1)
+                .unwrap_err()
+                .to_string()
+        };
+        let missing = load("missing.json", None);
+        assert!(
+            missing.contains("missing.json") && missing.contains("cannot read"),
+            "{missing}"
+        );
+        let junk = load("junk.json", Some("{\"not\": \"a list\"}"));
+        assert!(junk.contains("not a claims file"), "{junk}");
+        let none = load("none.json", Some("[]"));
+        assert!(none.contains("no claim set in context"), "{none}");
+        let g = graph();
+        let foreign = format!(
+            r#"[{{"method":"m","context":"all","horizon":1,"action_names":{:?},"state_names":{:?},"drives":{:?}}}]"#,
+            g.action_names, g.state_names, g.drives
+        );
+        let foreign = load("foreign.json", Some(&foreign));
+        assert!(foreign.contains("not the features of exp1"), "{foreign}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn a_graph_of_other_names_is_refused() {
         let mut g = graph();
         g.state_names = state_names(Experiment::Exp1);

@@ -562,7 +562,7 @@ pub(crate) fn threshold_claims(
             (0..effects.n_state)
                 .map(|k| {
                     let mean = members.iter().map(|&o| effects.at(o, a, k)).sum::<f64>() / n;
-                    if scale[k] > 0.0 { mean / scale[k] } else { 0.0 }
+                    crate::in_change_units(mean, scale[k])
                 })
                 .collect()
         })

@@ -472,6 +472,13 @@ pub fn change_scale(data: &Dataset) -> Vec<f64> {
     var.into_iter().map(|v| (v / n).sqrt()).collect()
 }
 
+/// `value` in units of a feature's one-step change `scale` (see [`change_scale`]); 0 for a
+/// feature that never changes in the data (whatever small effect a network gives it, the
+/// data shows no action changing it).
+pub(crate) fn in_change_units(value: f64, scale: f64) -> f64 {
+    if scale > 0.0 { value / scale } else { 0.0 }
+}
+
 /// One explanation run: what was explained, against what, and the attributions.
 #[derive(Debug)]
 pub struct Explanation {

@@ -100,12 +100,6 @@ pub struct Relevance {
     pub interval: Vec<Vec<[f64; 2]>>,
 }
 
-/// `mean_abs / scale`; 0 for a feature that never changes in the data (whatever small
-/// attribution a network gives it, the data shows no action changing it).
-fn score(mean_abs: f64, scale: f64) -> f64 {
-    if scale > 0.0 { mean_abs / scale } else { 0.0 }
-}
-
 /// Builds the report of `explanation` decided by today's SHAP rule alone with `threshold`
 /// (see [`DEFAULT_THRESHOLD`]), its intervals bootstrapped over the observations: the
 /// report of an explanation made without the data CAI needs.
@@ -184,7 +178,7 @@ fn build(explanation: &Explanation, threshold: f64, decision: &EdgeClaims) -> Re
                 scale: scale[j],
                 max_mean_abs_shap: max,
                 strongest_action: actions[best].clone(),
-                score: score(max, scale[j]),
+                score: crate::in_change_units(max, scale[j]),
                 affected: !driven.is_empty(),
                 driven_by: driven
                     .into_iter()
@@ -268,7 +262,7 @@ impl Relevance {
     /// Today's SHAP score (mean |SHAP| / scale) of action number `action` on state feature
     /// number `state`: what the heat map and the PDP ranking show.
     pub fn score(&self, action: usize, state: usize) -> f64 {
-        score(self.mean_abs_shap[action][state], self.states[state].scale)
+        crate::in_change_units(self.mean_abs_shap[action][state], self.states[state].scale)
     }
 
     /// Whether `action` drives `state` by the report's decision.

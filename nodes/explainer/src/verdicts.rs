@@ -125,14 +125,9 @@ fn with_interval(
     scale: &[f64],
     settings: &InfluenceSettings,
 ) -> EdgeClaims {
-    let ratio = |mean: f64, k: usize| ratio(mean, scale[k]);
+    let ratio = |mean: f64, k: usize| crate::in_change_units(mean, scale[k]);
     claims.interval = Some(bootstrap_interval(effects, members, settings, ratio));
     claims
-}
-
-/// `mean / unit`, 0 where the unit is 0 (a feature the data never changes).
-fn ratio(mean: f64, unit: f64) -> f64 {
-    if unit > 0.0 { mean / unit } else { 0.0 }
 }
 
 /// Refuses an explanation whose observations are not rows of `data` (another bag, or the
@@ -181,7 +176,9 @@ mod tests {
         let members: Vec<usize> = (0..100).collect();
         let settings = InfluenceSettings::default();
         let unit = [1.0, 4.0, 0.0];
-        let i = bootstrap_interval(&e, &members, &settings, |m, k| ratio(m, unit[k]));
+        let i = bootstrap_interval(&e, &members, &settings, |m, k| {
+            crate::in_change_units(m, unit[k])
+        });
         let [lo, hi] = i[0][0];
         assert!(lo < 49.5 && 49.5 < hi, "{lo} {hi}");
         // Standard error of the mean of 0..99 is ≈ 2.9: the interval spans about ±1.96 of it.

@@ -9,7 +9,7 @@ use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Experiment, load_bag
 use causal_arm_trainer::fit::{Progress, ProgressLog};
 use causal_arm_trainer::job::train_and_save;
 use causal_arm_trainer::problems::FmTarget;
-use causal_arm_trainer::structure::FoundGraph;
+use causal_arm_trainer::structure::{Auxiliary, FoundGraph};
 use causal_arm_trainer::{Figure, LrSchedule, ModelKind, Profile, TrainOptions};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -83,6 +83,13 @@ pub struct TrainArgs {
     /// Hidden layer widths of each head network of fm-factored.
     #[arg(long, value_delimiter = ',', default_value = "128,128,128")]
     factored_hidden: Vec<usize>,
+    /// Which other outputs each fm-factored network learns beside its head (only the
+    /// head's own error is reported): none; upstream, the features driven by a strict
+    /// subset of the actions of one of the head's features (θ(t+1) for ef(t+1));
+    /// determined, every feature driven only by the head's actions; auto, per head the one
+    /// that predicts it best on the last twentieth of the training rows.
+    #[arg(long, default_value = "auto", value_parser = auxiliary_policy())]
+    factored_auxiliary: Auxiliary,
     /// Output directory for model files and metrics.json.
     #[arg(long)]
     out: PathBuf,
@@ -189,6 +196,7 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         eval_every: args.eval_every,
         graph: None,
         factored_hidden: args.factored_hidden.clone(),
+        factored_auxiliary: args.factored_auxiliary,
     };
 
     let start = Instant::now();
@@ -299,4 +307,11 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         start.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// `--factored-auxiliary`'s parser: `--help` lists the policies.
+fn auxiliary_policy() -> impl clap::builder::TypedValueParser<Value = Auxiliary> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(Auxiliary::ALL.map(Auxiliary::name))
+        .try_map(|s| s.parse::<Auxiliary>())
 }

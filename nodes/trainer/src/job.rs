@@ -124,6 +124,7 @@ pub fn train_and_save(
                 "graph": options.graph.as_ref().map(|g| g.source.clone()),
                 "left_out": options.graph.as_ref().map(|g| g.unaffected()),
                 "factored_hidden": (kind == ModelKind::FmFactored).then_some(&options.factored_hidden),
+                "factored_auxiliary": (kind == ModelKind::FmFactored).then_some(options.factored_auxiliary.name()),
             },
         });
         saved.runs.extend(report.runs);

@@ -206,6 +206,9 @@ pub struct TrainOptions {
     pub graph: Option<structure::FoundGraph>,
     /// Hidden layers of each network of `fm-factored`.
     pub factored_hidden: Vec<usize>,
+    /// Which other outputs each `fm-factored` network learns beside its head
+    /// ([`structure::Auxiliary`]).
+    pub factored_auxiliary: structure::Auxiliary,
 }
 
 impl Default for TrainOptions {
@@ -226,6 +229,7 @@ impl Default for TrainOptions {
             eval_every: None,
             graph: None,
             factored_hidden: vec![128; 3],
+            factored_auxiliary: structure::Auxiliary::Auto,
         }
     }
 }
@@ -362,6 +366,25 @@ pub struct RunRecord {
     /// Held-out MAE per head during training (with `eval_every`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub curve: Vec<CurvePoint>,
+    /// How the network fared as one of several candidates for a factored head.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub selection: Option<Selection>,
+}
+
+/// A candidate network of `--factored-auxiliary auto` on the validation rows.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct Selection {
+    /// The head's MAE on the validation rows (never the test fold).
+    pub validation_mae: f64,
+    /// The candidate kept for the head.
+    pub chosen: bool,
+}
+
+/// Splits training rows into rows to fit on and the last twentieth, contiguous in time, on
+/// which the candidates of a factored head are compared (so the test fold stays unseen).
+fn selection_split(train: &[usize]) -> (&[usize], &[usize]) {
+    let select = (train.len() / 20).max(1).min(train.len().saturating_sub(1));
+    train.split_at(train.len() - select)
 }
 
 /// One point of a learning curve.
@@ -548,21 +571,28 @@ pub fn cross_validate(
             wall_s: wall.as_secs_f64(),
             parameters: model.mlp.spec().parameters(),
             curve,
+            selection: None,
         });
         Ok(model)
     };
+    // (label, selection) of every candidate network, set on its run record at the end.
+    let mut selections: Vec<(String, Selection)> = Vec::new();
     let k = options.folds;
     for (f, test) in fold_sets.iter().take(run_folds).enumerate() {
         let train = training_rows(n, test);
         let tag = format!("fold {}/{k}", f + 1);
+        // Records the figures of `heads` of the problem (auxiliary outputs are left out).
         let evaluate = |problem: &Problem,
+                        heads: std::ops::Range<usize>,
                         model: &Regressor,
                         prefix: &str,
                         acc: &mut Vec<FigureAcc>|
          -> Result<(), TrainError> {
             let mae = held_out_mae(problem, model, test)?;
             let baseline = mean_baseline_mae(&problem.truth, &problem.heads, &train, test);
-            record(acc, prefix, &problem.heads, &mae, &baseline);
+            let range = |v: &[f64]| v[heads.clone()].to_vec();
+            let infos = &problem.heads[heads.clone()];
+            record(acc, prefix, infos, &range(&mae), &range(&baseline));
             Ok(())
         };
         match kind {
@@ -577,7 +607,7 @@ pub fn cross_validate(
                     format!("fm {tag}"),
                     progress,
                 )?;
-                evaluate(&problem, &model, "fm", &mut acc)?;
+                evaluate(&problem, 0..problem.heads.len(), &model, "fm", &mut acc)?;
                 if f == 0 {
                     models.push((
                         "fm".to_owned(),
@@ -598,7 +628,13 @@ pub fn cross_validate(
                     format!("im-mono {tag}"),
                     progress,
                 )?;
-                evaluate(&problem, &model, "im_mono", &mut acc)?;
+                evaluate(
+                    &problem,
+                    0..problem.heads.len(),
+                    &model,
+                    "im_mono",
+                    &mut acc,
+                )?;
                 if f == 0 {
                     models.push((
                         "im-mono".to_owned(),
@@ -617,21 +653,65 @@ pub fn cross_validate(
                 let full = options.reduced(problems::forward_model(data, options.fm_target))?;
                 let settings = options.settings("fm", exp, &options.factored_hidden);
                 for head in &full.heads {
-                    let problem = structure::head_problem(&full, head, graph)?;
-                    let model = timed_fit(
-                        &problem,
-                        &train,
-                        test,
-                        &settings,
-                        format!("fm-factored {} {tag}", head.name),
-                        progress,
+                    let candidates =
+                        structure::head_candidates(&full, head, graph, options.factored_auxiliary)?;
+                    let (fit_rows, select_rows) = match candidates.len() {
+                        1 => (&train[..], &[][..]),
+                        _ => selection_split(&train),
+                    };
+                    let mut best: Option<(f64, String, structure::HeadNet, Regressor)> = None;
+                    let mut scores = Vec::new();
+                    for net in candidates {
+                        let policy = net.auxiliary.name();
+                        let label = format!("fm-factored {} [{policy}] {tag}", head.name);
+                        let model = timed_fit(
+                            &net.problem,
+                            fit_rows,
+                            test,
+                            &settings,
+                            label.clone(),
+                            progress,
+                        )?;
+                        let score = match select_rows {
+                            [] => 0.0,
+                            rows => held_out_mae(&net.problem, &model, rows)?[net.primary],
+                        };
+                        if !select_rows.is_empty() {
+                            tracing::info!("{label}: validation MAE {score:.4e}");
+                            scores.push((label.clone(), score));
+                        }
+                        if best.as_ref().is_none_or(|(b, ..)| score < *b) {
+                            best = Some((score, label, net, model));
+                        }
+                    }
+                    let Some((_, chosen, net, model)) = best else {
+                        return Err(TrainError::Options(format!(
+                            "head {} has no candidate network",
+                            head.name
+                        )));
+                    };
+                    for (label, validation_mae) in scores {
+                        let chosen = label == chosen;
+                        selections.push((
+                            label,
+                            Selection {
+                                validation_mae,
+                                chosen,
+                            },
+                        ));
+                    }
+                    evaluate(
+                        &net.problem,
+                        net.primary..net.primary + 1,
+                        &model,
+                        "fm",
+                        &mut acc,
                     )?;
-                    evaluate(&problem, &model, "fm", &mut acc)?;
                     if f == 0 {
                         models.push((
                             format!("fm-factored-{}", head.name),
                             model,
-                            ProblemInfo::from(&problem),
+                            ProblemInfo::from(&net.problem),
                             settings.clone(),
                         ));
                     }
@@ -732,6 +812,11 @@ pub fn cross_validate(
                     single(&mut acc, "ablation/sampled", "rad", sampled_mae, baseline);
                 }
             }
+        }
+    }
+    for (label, selection) in selections {
+        if let Some(run) = runs.iter_mut().find(|r| r.label == label) {
+            run.selection = Some(selection);
         }
     }
     Ok(KindReport {

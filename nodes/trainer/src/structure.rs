@@ -195,15 +195,90 @@ pub fn reduce(problem: &Problem, drop: &[String]) -> Result<Problem, TrainError>
     select(problem, &keep(&problem.input_names), &outputs)
 }
 
+/// Which outputs beside its own a factored head's network learns. A separate network loses
+/// the supervision a shared one gets from the other heads' targets (docs/RESULTS.md,
+/// "State-space reduction"), but not every head gains from it: the exp2 cube position is
+/// 2.8× better alone, its orientation better with every other target. So `Auto` chooses
+/// per head, on rows the test fold never sees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Auxiliary {
+    /// The head's own features only.
+    None,
+    /// The features that may be an ancestor of one of the head's features inside the
+    /// slice t+1 (θ(t+1) of ef(t+1) = FK(θ(t+1))): whatever drives an ancestor drives its
+    /// descendant through it, so an ancestor's drivers are a non-empty strict subset of the
+    /// feature's.
+    Upstream,
+    /// Every feature the head's parents determine: driven by no action outside the head's.
+    /// A target its parents cannot explain would only add noise, so none is taken.
+    Determined,
+    /// The fixed policy whose network predicts the head best on a validation slice of the
+    /// training rows.
+    Auto,
+}
+
+impl Auxiliary {
+    /// Every policy, in the order `--help` lists them.
+    pub const ALL: [Self; 4] = [Self::None, Self::Upstream, Self::Determined, Self::Auto];
+    /// The policies `Auto` chooses among.
+    pub const FIXED: [Self; 3] = [Self::None, Self::Upstream, Self::Determined];
+
+    /// The policy's name on the command line and in metrics.json.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Upstream => "upstream",
+            Self::Determined => "determined",
+            Self::Auto => "auto",
+        }
+    }
+}
+
+impl std::str::FromStr for Auxiliary {
+    type Err = TrainError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|a| a.name() == s)
+            .ok_or_else(|| {
+                TrainError::Options(format!(
+                    "unknown auxiliary policy {s:?}: expected none, upstream, determined or auto"
+                ))
+            })
+    }
+}
+
+/// One head of a forward model with its own network: the problem it is trained on and
+/// which of that problem's heads is the one it is for (the others are auxiliary outputs,
+/// trained on but never reported as the FM's figures).
+#[derive(Debug, Clone)]
+pub struct HeadNet {
+    /// The auxiliary policy that chose the outputs.
+    pub auxiliary: Auxiliary,
+    /// Inputs: the head's parents; outputs: the head and its auxiliary outputs.
+    pub problem: Problem,
+    /// Index in `problem.heads` of the head this network predicts.
+    pub primary: usize,
+}
+
 /// One head of a forward-model `problem` as a problem of its own, whose inputs are the
 /// head's parents in `graph`: every state feature of s(t) the problem has, and only the
-/// actions that drive one of the head's features.
+/// actions that drive one of the head's features; its outputs are the head's and those
+/// `auxiliary` adds (a fixed policy; [`head_candidates`] expands `Auto`).
 pub fn head_problem(
     problem: &Problem,
     head: &HeadInfo,
     graph: &FoundGraph,
-) -> Result<Problem, TrainError> {
-    let features: Vec<&str> = problem.output_names[head.start..head.start + head.len]
+    auxiliary: Auxiliary,
+) -> Result<HeadNet, TrainError> {
+    if auxiliary == Auxiliary::Auto {
+        return Err(TrainError::Options(
+            "head_problem takes a fixed auxiliary policy; head_candidates expands auto".into(),
+        ));
+    }
+    let head_range = head.start..head.start + head.len;
+    let features: Vec<&str> = problem.output_names[head_range.clone()]
         .iter()
         .map(|n| feature_of(n))
         .collect();
@@ -214,8 +289,62 @@ pub fn head_problem(
             !graph.action_names.contains(name) || drivers.contains(name)
         })
         .collect();
-    let outputs: Vec<usize> = (head.start..head.start + head.len).collect();
-    select(problem, &inputs, &outputs)
+    let feature_drivers: Vec<Vec<String>> =
+        features.iter().map(|&f| graph.drivers_of(&[f])).collect();
+    let subset = |own: &[String], of: &[String]| own.iter().all(|a| of.contains(a));
+    let takes = |output: &str| {
+        let own = graph.drivers_of(&[feature_of(output)]);
+        match auxiliary {
+            Auxiliary::None => false,
+            Auxiliary::Upstream => {
+                !own.is_empty()
+                    && feature_drivers
+                        .iter()
+                        .any(|of| own.len() < of.len() && subset(&own, of))
+            }
+            Auxiliary::Determined => subset(&own, &drivers),
+            Auxiliary::Auto => false,
+        }
+    };
+    let outputs: Vec<usize> = (0..problem.output_names.len())
+        .filter(|&o| head_range.contains(&o) || takes(&problem.output_names[o]))
+        .collect();
+    let problem = select(problem, &inputs, &outputs)?;
+    let primary = problem
+        .heads
+        .iter()
+        .position(|h| h.name == head.name)
+        .ok_or_else(|| TrainError::Options(format!("head {} lost its outputs", head.name)))?;
+    Ok(HeadNet {
+        auxiliary,
+        problem,
+        primary,
+    })
+}
+
+/// The networks a head may be trained as under `auxiliary`: one for a fixed policy, and
+/// for `Auto` one per fixed policy that gives a different set of outputs (the first policy
+/// of each set names it).
+pub fn head_candidates(
+    problem: &Problem,
+    head: &HeadInfo,
+    graph: &FoundGraph,
+    auxiliary: Auxiliary,
+) -> Result<Vec<HeadNet>, TrainError> {
+    if auxiliary != Auxiliary::Auto {
+        return Ok(vec![head_problem(problem, head, graph, auxiliary)?]);
+    }
+    let mut candidates: Vec<HeadNet> = Vec::new();
+    for policy in Auxiliary::FIXED {
+        let net = head_problem(problem, head, graph, policy)?;
+        if !candidates
+            .iter()
+            .any(|c| c.problem.output_names == net.problem.output_names)
+        {
+            candidates.push(net);
+        }
+    }
+    Ok(candidates)
 }
 
 #[cfg(test)]
@@ -282,14 +411,92 @@ mod tests {
     fn a_head_sees_the_state_and_only_its_driving_actions() {
         let p = problem();
         let g = graph();
-        let ab = head_problem(&p, &p.heads[0], &g).unwrap();
+        let ab = head_problem(&p, &p.heads[0], &g, Auxiliary::None)
+            .unwrap()
+            .problem;
         assert_eq!(ab.input_names, ["a", "b", "c", "u", "v"]);
-        let c = head_problem(&p, &p.heads[1], &g).unwrap();
+        let c = head_problem(&p, &p.heads[1], &g, Auxiliary::None)
+            .unwrap()
+            .problem;
         assert_eq!(c.input_names, ["a", "b", "c"]);
         assert_eq!(c.output_names, ["c_next"]);
         assert_eq!(c.offset_columns, Some(vec![2]));
         assert_eq!(c.inputs, vec![1., 2., 3., 4., 5., 6.]);
         assert_eq!((c.heads[0].start, c.heads[0].len), (0, 1));
+    }
+
+    #[test]
+    fn a_head_learns_as_auxiliary_outputs_the_features_driven_by_fewer_of_its_actions() {
+        let p = problem();
+        // u drives a and c, v drives c only, nothing drives b: a may be upstream of c, and
+        // b, driven by nothing, is upstream of nothing.
+        let g = FoundGraph {
+            drives: vec![vec![true, false, true], vec![false, false, true]],
+            ..graph()
+        };
+        let c = head_problem(&p, &p.heads[1], &g, Auxiliary::Upstream).unwrap();
+        assert_eq!(c.problem.output_names, ["a_next", "c_next"]);
+        assert_eq!(c.problem.heads[c.primary].name, "c");
+        assert_eq!((c.problem.heads[c.primary].start, c.primary), (1, 1));
+        assert_eq!(c.problem.truth, vec![1.5, 3., 4.5, 6.]);
+        // c's drivers are no subset of a's: the head ab takes no auxiliary output.
+        let ab = head_problem(&p, &p.heads[0], &g, Auxiliary::Upstream).unwrap();
+        assert_eq!(ab.problem.output_names, ["a_next", "b_next"]);
+        assert_eq!(ab.primary, 0);
+        let plain = head_problem(&p, &p.heads[1], &g, Auxiliary::None).unwrap();
+        assert_eq!(plain.problem.output_names, ["c_next"]);
+        // u drives a and c, v drives b: c's drivers are a strict subset of the head ab's
+        // together, but of none of its features (as ef_y's of the θ head's), so no
+        // auxiliary output.
+        let g = FoundGraph {
+            drives: vec![vec![true, false, true], vec![false, true, false]],
+            ..graph()
+        };
+        let ab = head_problem(&p, &p.heads[0], &g, Auxiliary::Upstream).unwrap();
+        assert_eq!(ab.problem.output_names, ["a_next", "b_next"]);
+    }
+
+    #[test]
+    fn determined_takes_every_feature_driven_only_by_the_heads_actions_and_auto_each_distinct_set()
+    {
+        let p = problem();
+        // u drives a and c, v drives c; nothing drives b.
+        let g = FoundGraph {
+            drives: vec![vec![true, false, true], vec![false, false, true]],
+            ..graph()
+        };
+        let c = head_problem(&p, &p.heads[1], &g, Auxiliary::Determined).unwrap();
+        assert_eq!(c.problem.output_names, ["a_next", "b_next", "c_next"]);
+        assert_eq!(c.problem.heads[c.primary].name, "c");
+        let names = |nets: Vec<HeadNet>| -> Vec<Vec<String>> {
+            nets.into_iter().map(|n| n.problem.output_names).collect()
+        };
+        let auto = head_candidates(&p, &p.heads[1], &g, Auxiliary::Auto).unwrap();
+        assert_eq!(
+            auto.iter().map(|n| n.auxiliary).collect::<Vec<_>>(),
+            Auxiliary::FIXED
+        );
+        assert_eq!(
+            names(auto),
+            [
+                vec!["c_next"],
+                vec!["a_next", "c_next"],
+                vec!["a_next", "b_next", "c_next"]
+            ]
+        );
+        // ab is driven by u alone; c needs v too: every policy gives ab alone, one network.
+        let ab = head_candidates(&p, &p.heads[0], &g, Auxiliary::Auto).unwrap();
+        assert_eq!(names(ab), [vec!["a_next", "b_next"]]);
+        assert!(head_problem(&p, &p.heads[0], &g, Auxiliary::Auto).is_err());
+        assert_eq!(
+            "determined".parse::<Auxiliary>().unwrap(),
+            Auxiliary::Determined
+        );
+        let unknown = "all".parse::<Auxiliary>().unwrap_err().to_string();
+        assert!(
+            unknown.contains("\"all\"") && unknown.contains("upstream"),
+            "{unknown}"
+        );
     }
 
     #[test]

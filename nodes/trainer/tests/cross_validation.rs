@@ -3,10 +3,11 @@
 use std::path::PathBuf;
 
 use causal_arm_datagen::{GenerateOptions, RunPlan, generate};
-use causal_arm_dataset::{ActionSource, Experiment, from_bag};
+use causal_arm_dataset::{ActionSource, Experiment, action_names, from_bag, state_names};
 use causal_arm_trainer::model_file::describe;
+use causal_arm_trainer::structure::FoundGraph;
 use causal_arm_trainer::{
-    ModelKind, Profile, TrainOptions, cross_validate, load_model, save_model,
+    ModelKind, Profile, RunRecord, TrainOptions, cross_validate, load_model, save_model,
 };
 
 fn dataset(experiment: Experiment, episodes: u64, steps: u64) -> causal_arm_dataset::Dataset {
@@ -148,4 +149,79 @@ fn bad_options_and_exp2_only_models_are_refused() {
     let im = cross_validate(&data, ModelKind::ImMono, &quick(2), &mut |_| {}).unwrap();
     let keys: Vec<&str> = im.figures.iter().map(|f| f.key.as_str()).collect();
     assert_eq!(keys, ["im_mono/joint", "im_mono/magnet"]);
+}
+
+/// exp1's true graph: a_i moves θi, a0..a5 move the effector (a6 turns the flange about
+/// the effector's axis).
+fn exp1_truth_graph() -> FoundGraph {
+    let actions = action_names(Experiment::Exp1);
+    let states = state_names(Experiment::Exp1);
+    let drives = (0..7)
+        .map(|a| {
+            states
+                .iter()
+                .map(|s| *s == format!("theta{a}") || (s.starts_with("ef_") && a < 6))
+                .collect()
+        })
+        .collect();
+    FoundGraph {
+        source: "exp1 truth".into(),
+        action_names: actions,
+        state_names: states,
+        drives,
+    }
+}
+
+#[test]
+fn factored_auto_compares_each_heads_candidates_on_training_rows_and_keeps_one() {
+    let data = dataset(Experiment::Exp1, 1, 1500);
+    let options = TrainOptions {
+        graph: Some(exp1_truth_graph()),
+        factored_hidden: vec![64, 64],
+        max_folds: Some(1),
+        ..quick(10)
+    };
+    let report = cross_validate(&data, ModelKind::FmFactored, &options, &mut |_| {}).unwrap();
+    let keys: Vec<&str> = report.figures.iter().map(|f| f.key.as_str()).collect();
+    assert_eq!(keys, ["fm/theta", "fm/ef"]);
+    for f in &report.figures {
+        assert!(
+            f.mean < 0.5 * f.baseline,
+            "{}: {} vs {}",
+            f.key,
+            f.mean,
+            f.baseline
+        );
+    }
+    // θ: alone, or with ef (driven by a0..a5 only); ef: alone, or with θ0..θ5 (upstream
+    // and determined give the same outputs, so one network).
+    let labels: Vec<&str> = report.runs.iter().map(|r| r.label.as_str()).collect();
+    assert_eq!(
+        labels,
+        [
+            "fm-factored theta [none] fold 1/3",
+            "fm-factored theta [determined] fold 1/3",
+            "fm-factored ef [none] fold 1/3",
+            "fm-factored ef [upstream] fold 1/3",
+        ]
+    );
+    let training_rows = data.rows() - data.rows() / 3;
+    for head in report.runs.chunks(2) {
+        let chosen: Vec<bool> = head.iter().map(|r| r.selection.unwrap().chosen).collect();
+        assert_eq!(chosen.iter().filter(|&&c| c).count(), 1, "{head:?}");
+        let best = head
+            .iter()
+            .min_by(|a, b| {
+                let mae = |r: &&RunRecord| r.selection.unwrap().validation_mae;
+                mae(a).total_cmp(&mae(b))
+            })
+            .unwrap();
+        assert!(best.selection.unwrap().chosen);
+        assert!(
+            head.iter()
+                .all(|r| r.rows < training_rows && r.rows > training_rows * 9 / 10)
+        );
+    }
+    let saved: Vec<&str> = report.models.iter().map(|m| m.0.as_str()).collect();
+    assert_eq!(saved, ["fm-factored-theta", "fm-factored-ef"]);
 }

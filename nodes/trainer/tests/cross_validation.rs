@@ -11,8 +11,11 @@ use causal_arm_trainer::{
 };
 
 fn dataset(experiment: Experiment, episodes: u64, steps: u64) -> causal_arm_dataset::Dataset {
+    // Tests run in parallel threads of one process: each call gets its own directory.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let dir = std::env::temp_dir().join(format!(
-        "causal-arm-trainer-{experiment}-{}",
+        "causal-arm-trainer-{experiment}-{}-{call}",
         std::process::id()
     ));
     let _ = std::fs::remove_dir_all(&dir);

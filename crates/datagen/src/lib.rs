@@ -14,8 +14,9 @@ use causal_arm_babbler::{Exp1Babbler, Exp1Config, Exp2Babbler, Exp2Config};
 use causal_arm_kinematics::{ArmModel, EMBEDDED_IIWA_URDF};
 use causal_arm_msgs::msg::Action;
 use causal_arm_msgs::std_msgs::msg::{Header, String as RosString};
+use causal_arm_protocol::{time_from_ns, topics};
 use causal_arm_recorder::{BagError, BagOptions, BagWriter, offered_qos_yaml};
-use causal_arm_sim::ros::{self, StepMessages, topics};
+use causal_arm_sim::ros::{self, StepMessages};
 use causal_arm_sim::{Command, SimConfig, SimError, SimState, Simulator};
 use thiserror::Error;
 
@@ -297,7 +298,7 @@ pub fn babbler_seed(seed: u64) -> u64 {
 pub fn action_message(state: &SimState, command: &Command, step_in_episode: u64) -> Action {
     Action {
         header: Header {
-            stamp: ros::time_from_ns(state.stamp_ns),
+            stamp: time_from_ns(state.stamp_ns),
             frame_id: String::new(),
         },
         episode: state.episode,

@@ -9,8 +9,8 @@ use causal_arm_dataset::{
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
+use causal_arm_protocol::topics;
 use causal_arm_recorder::{BagOptions, BagReader, BagWriter, RawMessage, offered_qos_yaml};
-use causal_arm_sim::ros::topics;
 
 fn tempdir(name: &str) -> PathBuf {
     let dir =

@@ -11,7 +11,8 @@ use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
-use causal_arm_sim::ros::{ns_from_time, state_from_messages, topics};
+use causal_arm_protocol::{ns_from_time, topics};
+use causal_arm_sim::ros::state_from_messages;
 
 use crate::{RunParams, run_param_specs, stop_flag, take_next};
 

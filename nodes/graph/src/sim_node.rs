@@ -14,7 +14,8 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
-use causal_arm_sim::ros::{self, ns_from_time, topics};
+use causal_arm_protocol::{ns_from_time, topics};
+use causal_arm_sim::ros;
 use causal_arm_sim::{Command, SimConfig, Simulator};
 use ros2_client::Publisher;
 

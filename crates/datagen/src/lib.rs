@@ -13,11 +13,10 @@ use std::str::FromStr;
 use causal_arm_babbler::{Exp1Babbler, Exp1Config, Exp2Babbler, Exp2Config};
 use causal_arm_kinematics::{ArmModel, EMBEDDED_IIWA_URDF};
 use causal_arm_msgs::msg::Action;
-use causal_arm_msgs::std_msgs::msg::{Header, String as RosString};
-use causal_arm_protocol::{time_from_ns, topics};
+use causal_arm_msgs::std_msgs::msg::String as RosString;
+use causal_arm_protocol::{Command, SimState, StepMessages, action_message, step_messages, topics};
 use causal_arm_recorder::{BagError, BagOptions, BagWriter, offered_qos_yaml};
-use causal_arm_sim::ros::{self, StepMessages};
-use causal_arm_sim::{Command, SimConfig, SimError, SimState, Simulator};
+use causal_arm_sim::{SimConfig, SimError, Simulator};
 use thiserror::Error;
 
 /// Which of the paper's experiments.
@@ -294,26 +293,6 @@ pub fn babbler_seed(seed: u64) -> u64 {
     seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ 0xBABB
 }
 
-/// The Action message answering `state` with `command`.
-pub fn action_message(state: &SimState, command: &Command, step_in_episode: u64) -> Action {
-    Action {
-        header: Header {
-            stamp: time_from_ns(state.stamp_ns),
-            frame_id: String::new(),
-        },
-        episode: state.episode,
-        step: step_in_episode as u32,
-        joint_deltas: command
-            .joint_targets
-            .iter()
-            .zip(&state.joint_positions)
-            .map(|(t, q)| t - q)
-            .collect(),
-        joint_targets: command.joint_targets.to_vec(),
-        magnet: command.magnet,
-    }
-}
-
 /// Receives the messages of a run in graph order (the recorder, or a test).
 pub trait StepSink {
     /// Called once before the first step.
@@ -354,6 +333,7 @@ pub fn run(
     })?;
     let model = sim.model().clone();
     let mut babbler = Babbler::new(options, &model)?;
+    let joint_names = model.joint_names();
     sink.robot_description(&RosString {
         data: EMBEDDED_IIWA_URDF.to_owned(),
     })?;
@@ -366,7 +346,7 @@ pub fn run(
         }
         let mut state = sim.state();
         for k in 0..options.plan.steps_per_episode {
-            sink.state(state.stamp_ns, &ros::step_messages(&state, &model))?;
+            sink.state(state.stamp_ns, &step_messages(&state, &joint_names))?;
             let command = babbler.next(&state);
             sink.action(state.stamp_ns, &action_message(&state, &command, k))?;
             state = sim.step(&command)?;

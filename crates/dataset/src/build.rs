@@ -7,9 +7,8 @@ use causal_arm_datagen::bag_keys;
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
-use causal_arm_protocol::{ns_from_time, topics};
+use causal_arm_protocol::{StepMessages, ns_from_time, topics};
 use causal_arm_recorder::{BagReader, RawMessage};
-use causal_arm_sim::ros::StepMessages;
 use nalgebra::{Quaternion, UnitQuaternion};
 
 use crate::{ActionSource, Dataset, DatasetError, Experiment, state_names};

@@ -2,7 +2,8 @@
 //! cube only while it is held; the magnet drops it only on release). One definition serves
 //! the simulator's ground truth and the explainer's claims, so both split states alike.
 
-use causal_arm_sim::{SimConfig, SimState};
+use causal_arm_protocol::SimState;
+use causal_arm_sim::SimConfig;
 
 use crate::{Dataset, Experiment, state_names};
 

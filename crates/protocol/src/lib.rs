@@ -1,11 +1,18 @@
 //! The vocabulary the project's crates share: what the graph's topics and frames are called
-//! and how stamps are written.
+//! and how stamps are written, what the simulator and the babbler exchange each step and
+//! how that becomes ROS messages.
 //!
 //! Libraries (dataset, trainer, explainer, truth) read bags and speak of experiments; they
-//! need these names, not the simulator or the babbler that produce them. Keeping the names
-//! here, with no DDS and no physics behind them, lets every crate agree on them without
+//! need these names and shapes, not the simulator or the babbler that produce them. Keeping
+//! them here, with no DDS and no physics behind them, lets every crate agree on them without
 //! building rapier3d or ros2-client.
 
+pub mod messages;
+pub mod step;
 pub mod topics;
 
+pub use messages::{
+    StateFromMessagesError, StepMessages, action_message, state_from_messages, step_messages,
+};
+pub use step::{ARM_DOF, Command, SimState};
 pub use topics::{frames, ns_from_time, time_from_ns};

@@ -30,7 +30,8 @@ pub const ACTION: &str = "/babbler/action";
 pub mod frames {
     /// Fixed world frame (the URDF root).
     pub const WORLD: &str = "world";
-    /// Tool tip.
+    /// Tool tip: the tool frame whose pose the experiments record (the link the arm
+    /// model's kinematic chain ends at).
     pub const EF: &str = "ef";
     /// The cube.
     pub const OBJECT: &str = "object";

@@ -7,9 +7,8 @@ use std::path::Path;
 use causal_arm_datagen::{Experiment, bag_keys};
 use causal_arm_msgs::msg::Action;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
-use causal_arm_protocol::{ns_from_time, topics};
+use causal_arm_protocol::{Command, ns_from_time, topics};
 use causal_arm_recorder::BagReader;
-use causal_arm_sim::Command;
 
 use crate::TruthError;
 

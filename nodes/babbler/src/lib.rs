@@ -10,8 +10,8 @@
 //!   on, then reaches the cube (IK, from above), picks it, manoeuvres randomly for a random
 //!   number of steps, switches the magnet off (the cube drops) and babbles again.
 
-use causal_arm_kinematics::{ARM_DOF, ArmModel, IkOptions, IkTarget};
-use causal_arm_sim::{Command, SimState};
+use causal_arm_kinematics::{ArmModel, IkOptions, IkTarget};
+use causal_arm_protocol::{ARM_DOF, Command, SimState};
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use rand_distr::{Distribution, Normal};
 

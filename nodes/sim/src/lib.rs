@@ -22,15 +22,14 @@
 #![allow(clippy::needless_range_loop)]
 
 use ::nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
-use causal_arm_kinematics::{ARM_DOF, ArmModel, EF_FRAME, KinematicsError};
+use causal_arm_kinematics::{ArmModel, KinematicsError};
+use causal_arm_protocol::{ARM_DOF, Command, SimState, frames};
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use rapier3d::math::{Pose, Rotation, Vector};
 use rapier3d::prelude::{
     ColliderBuilder, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, RigidBodyType,
 };
 use thiserror::Error;
-
-pub mod ros;
 
 /// Simulator settings; defaults follow the paper's protocol (PyBullet-like 240 Hz, 10 substeps).
 #[derive(Debug, Clone)]
@@ -118,43 +117,6 @@ pub enum SimError {
     /// The configuration is inconsistent.
     #[error("invalid simulator configuration: {0}")]
     Config(String),
-}
-
-/// What the babbler asks for in one step.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Command {
-    /// Absolute joint targets, rad (clamped to the URDF limits by the motors).
-    pub joint_targets: [f64; ARM_DOF],
-    /// −1 switch off, 0 keep, +1 switch on.
-    pub magnet: i8,
-}
-
-/// Everything the simulator reports after a step, all at one sim time.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SimState {
-    /// Sim time, ns since the start of the run.
-    pub stamp_ns: u64,
-    /// Step index since the start of the run.
-    pub step: u64,
-    /// Episode index.
-    pub episode: u32,
-    /// Joint positions, rad.
-    pub joint_positions: [f64; ARM_DOF],
-    /// Joint velocities, rad/s.
-    pub joint_velocities: [f64; ARM_DOF],
-    /// Commanded joint torques are not modelled; the servo's acceleration times the joint
-    /// inertia is reported as effort, N m.
-    pub joint_efforts: [f64; ARM_DOF],
-    /// `ef` pose in the world frame.
-    pub ef_pose: Isometry3<f64>,
-    /// Cube pose in the world frame.
-    pub cube_pose: Isometry3<f64>,
-    /// Cube colour, RGB in [0, 1].
-    pub cube_rgb: [f32; 3],
-    /// Magnet switched on.
-    pub magnet_on: bool,
-    /// Magnet holds the cube.
-    pub holding: bool,
 }
 
 #[derive(Clone)]
@@ -676,7 +638,7 @@ impl Simulator {
 
     /// Name of the tool frame reported as `ef_pose`.
     pub fn ef_frame() -> &'static str {
-        EF_FRAME
+        frames::EF
     }
 }
 

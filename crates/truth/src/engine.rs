@@ -4,11 +4,10 @@ use std::path::Path;
 use std::sync::mpsc;
 use std::time::Instant;
 
-use causal_arm_datagen::{Experiment, sim_seed};
 use causal_arm_dataset::{
     Context, ContextState, action_names, angular_features, state_features, state_names, wrap_angle,
 };
-use causal_arm_protocol::{Command, SimState, step_messages};
+use causal_arm_protocol::{Command, Experiment, SimState, sim_seed, step_messages};
 use causal_arm_sim::{SimConfig, Simulator};
 use rand::SeedableRng;
 use rand::rngs::StdRng;

@@ -5,7 +5,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
-use causal_arm_datagen::{sim_seed, validate};
+use causal_arm_datagen::validate;
 use causal_arm_kinematics::EMBEDDED_IIWA_URDF;
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
@@ -14,7 +14,7 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
-use causal_arm_protocol::{ARM_DOF, Command, ns_from_time, step_messages, topics};
+use causal_arm_protocol::{ARM_DOF, Command, ns_from_time, sim_seed, step_messages, topics};
 use causal_arm_sim::{SimConfig, Simulator};
 use ros2_client::Publisher;
 

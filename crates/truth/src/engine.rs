@@ -120,7 +120,7 @@ impl Setup<'_> {
             contexts: self
                 .contexts
                 .iter()
-                .map(|c| c.holds(&ContextState::of_sim(&state), snapshot.config()))
+                .map(|c| c.holds(&ContextState::of_sim(&state), &snapshot.config().scene()))
                 .collect(),
             effects,
             replay,

@@ -11,7 +11,7 @@
 //!   number of steps, switches the magnet off (the cube drops) and babbles again.
 
 use causal_arm_kinematics::{ArmModel, IkOptions, IkTarget};
-use causal_arm_protocol::{ARM_DOF, Command, SimState};
+use causal_arm_protocol::{ARM_DOF, Command, SimState, scene};
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use rand_distr::{Distribution, Normal};
 
@@ -151,9 +151,10 @@ impl Default for Exp2Config {
             reach_timeout_steps: 80,
             approach_height: 0.12,
             min_clearance: 0.06,
-            table_top_z: 0.20,
-            cube_size: 0.05,
-            table_area: ([0.58, 0.0], [0.15, 0.25]),
+            table_top_z: scene::TABLE_TOP_Z,
+            cube_size: scene::CUBE_SIZE,
+            // The table less a cube edge on each side (datagen derives it the same way).
+            table_area: (scene::TABLE_CENTER, [0.15, 0.25]),
             release_height: 0.03,
             place_timeout_steps: 40,
             seed: 0,

@@ -23,7 +23,7 @@
 
 use ::nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use causal_arm_kinematics::{ArmModel, KinematicsError};
-use causal_arm_protocol::{ARM_DOF, Command, SimState, frames};
+use causal_arm_protocol::{ARM_DOF, Command, Scene, SimState, frames, scene};
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use rapier3d::math::{Pose, Rotation, Vector};
 use rapier3d::prelude::{
@@ -91,16 +91,28 @@ impl Default for SimConfig {
             servo_gain: 40.0,
             velocity_scale: 1.0,
             capture_distance: 0.02,
-            cube_size: 0.05,
+            cube_size: scene::CUBE_SIZE,
             cube_mass: 0.1,
-            table_top_z: 0.20,
-            table_center: [0.58, 0.0],
-            table_half_extents: [0.20, 0.30],
+            table_top_z: scene::TABLE_TOP_Z,
+            table_center: scene::TABLE_CENTER,
+            table_half_extents: scene::TABLE_HALF_EXTENTS,
             spawn_margin: 0.05,
             friction: 0.8,
             home: [0.0, 0.5, 0.0, -1.2, 0.0, 0.8, 0.0],
             seed: 0,
             link_cylinders: LinkCylinders::Capsules,
+        }
+    }
+}
+
+impl SimConfig {
+    /// The table and cube this configuration builds, for judging its states (contexts).
+    pub fn scene(&self) -> Scene {
+        Scene {
+            table_top_z: self.table_top_z,
+            table_center: self.table_center,
+            table_half_extents: self.table_half_extents,
+            cube_size: self.cube_size,
         }
     }
 }

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use causal_arm_datagen::{Experiment, GenerateOptions, Profile, RunPlan, generate};
+use causal_arm_datagen::{GenerateOptions, generate};
+use causal_arm_protocol::{Experiment, Profile, RunPlan};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use causal_arm_datagen::Experiment;
+use causal_arm_protocol::Experiment;
 use causal_arm_truth::{Edge, Plan, intervene, write_all};
 use clap::Args;
 

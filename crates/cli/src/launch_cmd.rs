@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, bail};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_node::{RosArgs, RosNode, qos};
-use causal_arm_sim::ros::ns_from_time;
+use causal_arm_protocol::ns_from_time;
 
 use crate::generate_cmd::{GenerateArgs, step_progress};
 

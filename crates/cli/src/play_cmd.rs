@@ -9,8 +9,8 @@ use anyhow::{Context as _, bail};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::{MessageTypeVisitor, RosMessage, visit_message_type};
 use causal_arm_node::{RosArgs, RosNode, qos};
+use causal_arm_protocol::time_from_ns;
 use causal_arm_recorder::BagReader;
-use causal_arm_sim::ros::time_from_ns;
 
 /// Arguments of `causal-arm play`.
 #[derive(Debug, clap::Args)]

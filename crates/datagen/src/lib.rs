@@ -8,107 +8,18 @@
 //! messages per episode; the dataset builder forms (s_k, a_k, s_{k+1}) for k < K−1.
 
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 
 use causal_arm_babbler::{Exp1Babbler, Exp1Config, Exp2Babbler, Exp2Config};
 use causal_arm_kinematics::{ArmModel, EMBEDDED_IIWA_URDF};
 use causal_arm_msgs::msg::Action;
-use causal_arm_msgs::std_msgs::msg::{Header, String as RosString};
+use causal_arm_msgs::std_msgs::msg::String as RosString;
+use causal_arm_protocol::{
+    Command, Experiment, RunPlan, SimState, StepMessages, action_message, babbler_seed, bag_keys,
+    sim_seed, step_messages, topics,
+};
 use causal_arm_recorder::{BagError, BagOptions, BagWriter, offered_qos_yaml};
-use causal_arm_sim::ros::{self, StepMessages, topics};
-use causal_arm_sim::{Command, SimConfig, SimError, SimState, Simulator};
+use causal_arm_sim::{SimConfig, SimError, Simulator};
 use thiserror::Error;
-
-/// Which of the paper's experiments.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Experiment {
-    /// Kinematics: random joint configurations.
-    Exp1,
-    /// Intuitive physics: magnet, cube, table.
-    Exp2,
-}
-
-impl FromStr for Experiment {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "exp1" => Ok(Self::Exp1),
-            "exp2" => Ok(Self::Exp2),
-            other => Err(format!(
-                "unknown experiment {other:?}: expected exp1 or exp2"
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for Experiment {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Exp1 => "exp1",
-            Self::Exp2 => "exp2",
-        })
-    }
-}
-
-/// Size presets.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Profile {
-    /// The paper's protocol: 500,000 steps (exp 1); 4,000 episodes × 500 (exp 2).
-    Paper,
-    /// A demo that runs in about a minute.
-    Quick,
-}
-
-impl FromStr for Profile {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "paper" => Ok(Self::Paper),
-            "quick" => Ok(Self::Quick),
-            other => Err(format!(
-                "unknown profile {other:?}: expected paper or quick"
-            )),
-        }
-    }
-}
-
-/// How many episodes of how many steps.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RunPlan {
-    /// Episodes (exp 1 runs one long episode).
-    pub episodes: u64,
-    /// Steps per episode.
-    pub steps_per_episode: u64,
-}
-
-impl RunPlan {
-    /// The profile's plan for `experiment`.
-    pub fn for_profile(experiment: Experiment, profile: Profile) -> Self {
-        match (experiment, profile) {
-            (Experiment::Exp1, Profile::Paper) => Self {
-                episodes: 1,
-                steps_per_episode: 500_000,
-            },
-            (Experiment::Exp1, Profile::Quick) => Self {
-                episodes: 1,
-                steps_per_episode: 5_000,
-            },
-            (Experiment::Exp2, Profile::Paper) => Self {
-                episodes: 4_000,
-                steps_per_episode: 500,
-            },
-            (Experiment::Exp2, Profile::Quick) => Self {
-                episodes: 20,
-                steps_per_episode: 500,
-            },
-        }
-    }
-
-    /// Total steps.
-    pub fn total_steps(&self) -> u64 {
-        self.episodes * self.steps_per_episode
-    }
-}
 
 /// Everything a generation run needs.
 #[derive(Debug, Clone)]
@@ -129,25 +40,6 @@ pub struct GenerateOptions {
     pub exp1: Exp1Config,
     /// Exp 2 babbling settings (seed derived from `seed`).
     pub exp2: Exp2Config,
-}
-
-/// `custom_data` keys a dataset bag carries (see [`GenerateOptions::bag_custom_data`]).
-pub mod bag_keys {
-    /// `exp1` or `exp2`.
-    pub const EXPERIMENT: &str = "causal_arm.experiment";
-    /// Babbling seed.
-    pub const SEED: &str = "causal_arm.seed";
-    /// Episodes in the run.
-    pub const EPISODES: &str = "causal_arm.episodes";
-    /// Steps per episode.
-    pub const STEPS_PER_EPISODE: &str = "causal_arm.steps_per_episode";
-    /// Exp 1 babbling spread, rad.
-    pub const SIGMA: &str = "causal_arm.sigma";
-    /// Scale of the URDF joint velocity limits.
-    pub const VELOCITY_SCALE: &str = "causal_arm.velocity_scale";
-    /// Exp 2 babbler moves while switching the magnet (`true`/`false`; bags written before
-    /// it became the default lack the key and held the arm still).
-    pub const MOVE_WHILE_SWITCHING: &str = "causal_arm.move_while_switching";
 }
 
 impl GenerateOptions {
@@ -283,36 +175,6 @@ impl Babbler {
     }
 }
 
-/// Seed of the simulator for a run seed (decorrelated from the babbler's).
-pub fn sim_seed(seed: u64) -> u64 {
-    seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5151
-}
-
-/// Seed of the babbler for a run seed.
-pub fn babbler_seed(seed: u64) -> u64 {
-    seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ 0xBABB
-}
-
-/// The Action message answering `state` with `command`.
-pub fn action_message(state: &SimState, command: &Command, step_in_episode: u64) -> Action {
-    Action {
-        header: Header {
-            stamp: ros::time_from_ns(state.stamp_ns),
-            frame_id: String::new(),
-        },
-        episode: state.episode,
-        step: step_in_episode as u32,
-        joint_deltas: command
-            .joint_targets
-            .iter()
-            .zip(&state.joint_positions)
-            .map(|(t, q)| t - q)
-            .collect(),
-        joint_targets: command.joint_targets.to_vec(),
-        magnet: command.magnet,
-    }
-}
-
 /// Receives the messages of a run in graph order (the recorder, or a test).
 pub trait StepSink {
     /// Called once before the first step.
@@ -353,6 +215,7 @@ pub fn run(
     })?;
     let model = sim.model().clone();
     let mut babbler = Babbler::new(options, &model)?;
+    let joint_names = model.joint_names();
     sink.robot_description(&RosString {
         data: EMBEDDED_IIWA_URDF.to_owned(),
     })?;
@@ -365,7 +228,7 @@ pub fn run(
         }
         let mut state = sim.state();
         for k in 0..options.plan.steps_per_episode {
-            sink.state(state.stamp_ns, &ros::step_messages(&state, &model))?;
+            sink.state(state.stamp_ns, &step_messages(&state, &joint_names))?;
             let command = babbler.next(&state);
             sink.action(state.stamp_ns, &action_message(&state, &command, k))?;
             state = sim.step(&command)?;

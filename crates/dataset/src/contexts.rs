@@ -2,7 +2,7 @@
 //! cube only while it is held; the magnet drops it only on release). One definition serves
 //! the simulator's ground truth and the explainer's claims, so both split states alike.
 
-use causal_arm_sim::{SimConfig, SimState};
+use causal_arm_protocol::{Scene, SimState};
 
 use crate::{Dataset, Experiment, state_names};
 
@@ -59,9 +59,9 @@ impl ContextReader {
         }
     }
 
-    /// Whether row `row` of `data` lies in `context` (the table of the default simulator).
+    /// Whether row `row` of `data` lies in `context` (the table of the default scene).
     pub fn holds(&self, data: &Dataset, row: usize, context: &Context) -> bool {
-        context.holds(&self.at(data, row), &SimConfig::default())
+        context.holds(&self.at(data, row), &Scene::default())
     }
 }
 
@@ -70,7 +70,7 @@ impl ContextReader {
 pub struct Context {
     /// Name used in truth files, reports and score tables.
     pub name: &'static str,
-    holds: fn(&ContextState, &SimConfig) -> bool,
+    holds: fn(&ContextState, &Scene) -> bool,
 }
 
 impl Context {
@@ -98,19 +98,14 @@ impl Context {
         }
     }
 
-    /// Whether a state belongs to the context (`config`: the table's geometry).
-    pub fn holds(&self, state: &ContextState, config: &SimConfig) -> bool {
-        (self.holds)(state, config)
+    /// Whether a state belongs to the context (`scene`: the table's geometry).
+    pub fn holds(&self, state: &ContextState, scene: &Scene) -> bool {
+        (self.holds)(state, scene)
     }
 }
 
 /// The cube rests on the table top: not held, its centre half an edge above the top
 /// (within 5 mm) and over the table.
-fn cube_on_table(s: &ContextState, c: &SimConfig) -> bool {
-    let [x, y, z] = s.cube;
-    let resting_z = c.table_top_z + c.cube_size / 2.0;
-    !s.holding
-        && (z - resting_z).abs() < 5e-3
-        && (x - c.table_center[0]).abs() <= c.table_half_extents[0]
-        && (y - c.table_center[1]).abs() <= c.table_half_extents[1]
+fn cube_on_table(s: &ContextState, scene: &Scene) -> bool {
+    !s.holding && scene.cube_rests_on_table(s.cube)
 }

@@ -14,7 +14,7 @@ mod features;
 
 pub use build::{BagSource, from_bag, state_features};
 pub use cache::{Cache, CacheOutcome, load_bags};
-pub use causal_arm_datagen::Experiment;
+pub use causal_arm_protocol::Experiment;
 pub use contexts::{Context, ContextReader, ContextState};
 pub use features::{
     FeatureGroup, action_names, angular_features, state_groups, state_names, wrap_angle,

@@ -8,6 +8,8 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use causal_arm_protocol::ARM_DOF;
+use causal_arm_protocol::frames::EF as EF_FRAME;
 use nalgebra::{
     DMatrix, DVector, Isometry3, Matrix3, Matrix6xX, Point3, Rotation3, Translation3, Unit,
     UnitQuaternion, Vector3, Vector6,
@@ -17,12 +19,6 @@ use thiserror::Error;
 
 /// The project's arm (iiwa 14 + magnet tool), compiled in so tools work without a checkout.
 pub const EMBEDDED_IIWA_URDF: &str = include_str!("../../../urdf/iiwa14_magnet.urdf");
-
-/// Name of the tool frame whose pose the experiments record.
-pub const EF_FRAME: &str = "ef";
-
-/// Number of actuated joints of the arm.
-pub const ARM_DOF: usize = 7;
 
 /// Everything that can go wrong loading the model or using it; each names the culprit.
 #[derive(Debug, Error)]

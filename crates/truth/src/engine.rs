@@ -4,12 +4,11 @@ use std::path::Path;
 use std::sync::mpsc;
 use std::time::Instant;
 
-use causal_arm_datagen::{Experiment, sim_seed};
 use causal_arm_dataset::{
     Context, ContextState, action_names, angular_features, state_features, state_names, wrap_angle,
 };
-use causal_arm_sim::ros::step_messages;
-use causal_arm_sim::{Command, SimConfig, SimState, Simulator};
+use causal_arm_protocol::{Command, Experiment, SimState, sim_seed, step_messages};
+use causal_arm_sim::{SimConfig, Simulator};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::index::sample;
@@ -48,6 +47,7 @@ impl Setup<'_> {
         index: usize,
         first: &Command,
     ) -> Result<Vec<f64>, TruthError> {
+        let joint_names = snapshot.model().joint_names();
         let mut sim = snapshot.clone();
         let mut out = Vec::with_capacity(self.plan.horizon * self.n_state);
         for h in 0..self.plan.horizon {
@@ -59,7 +59,7 @@ impl Setup<'_> {
             let state = sim.step(command)?;
             out.extend(state_features(
                 self.trace.experiment,
-                &step_messages(&state, sim.model()),
+                &step_messages(&state, &joint_names),
             ));
         }
         Ok(out)
@@ -120,7 +120,7 @@ impl Setup<'_> {
             contexts: self
                 .contexts
                 .iter()
-                .map(|c| c.holds(&ContextState::of_sim(&state), snapshot.config()))
+                .map(|c| c.holds(&ContextState::of_sim(&state), &snapshot.config().scene()))
                 .collect(),
             effects,
             replay,

@@ -3,7 +3,8 @@
 
 use std::path::PathBuf;
 
-use causal_arm_datagen::{Experiment, GenerateOptions, RunPlan, generate};
+use causal_arm_datagen::{GenerateOptions, generate};
+use causal_arm_protocol::{Experiment, RunPlan};
 use causal_arm_scoring::EdgeClaims;
 use causal_arm_truth::{Edge, Plan, Truth, intervene, load, score_claims, write_all};
 

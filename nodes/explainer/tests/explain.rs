@@ -1,13 +1,14 @@
 //! The explainer on a real generated exp2 bag and a forward model trained on it: efficiency,
 //! the colour finding, the files, and the service's answers to good and bad requests.
 
-use causal_arm_datagen::{GenerateOptions, RunPlan, generate};
+use causal_arm_datagen::{GenerateOptions, generate};
 use causal_arm_dataset::{ActionSource, Dataset, Experiment, from_bag};
 use causal_arm_explainer::output::write_all;
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
 use causal_arm_explainer::serve::{ExplainService, relevance_msg};
 use causal_arm_explainer::{Explainer, Method, Settings, forward_inputs, relevance};
 use causal_arm_msgs::srv::Explain_Request;
+use causal_arm_protocol::RunPlan;
 use causal_arm_trainer::model_file::describe;
 use causal_arm_trainer::{
     ModelKind, Profile, TrainOptions, cross_validate, load_model, save_model,

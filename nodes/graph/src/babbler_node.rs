@@ -5,13 +5,13 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
-use causal_arm_datagen::{Babbler, action_message, validate};
+use causal_arm_datagen::{Babbler, validate};
 use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
-use causal_arm_sim::ros::{ns_from_time, state_from_messages, topics};
+use causal_arm_protocol::{action_message, ns_from_time, state_from_messages, topics};
 
 use crate::{RunParams, run_param_specs, stop_flag, take_next};
 

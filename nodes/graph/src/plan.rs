@@ -1,8 +1,9 @@
 //! The run parameters every node of the graph takes, mapped onto the shared
 //! [`GenerateOptions`] so the graph and `causal-arm generate` agree.
 
-use causal_arm_datagen::{Experiment, GenerateOptions, Profile, RunPlan};
+use causal_arm_datagen::GenerateOptions;
 use causal_arm_node::{ParamSpec, ParamValue, Params};
+use causal_arm_protocol::{Experiment, Profile, RunPlan};
 
 /// Parameter declarations shared by sim, babbler and recorder.
 pub fn run_param_specs() -> Vec<ParamSpec> {

@@ -17,7 +17,7 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
-use causal_arm_sim::ros::{StepMessages, ns_from_time, time_from_ns, topics};
+use causal_arm_protocol::{StepMessages, ns_from_time, time_from_ns, topics};
 
 use crate::{ACK_TOPIC, RunParams, run_param_specs, stop_flag};
 

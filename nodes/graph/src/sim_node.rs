@@ -5,8 +5,8 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
-use causal_arm_datagen::{sim_seed, validate};
-use causal_arm_kinematics::{ARM_DOF, EMBEDDED_IIWA_URDF};
+use causal_arm_datagen::validate;
+use causal_arm_kinematics::EMBEDDED_IIWA_URDF;
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
@@ -14,8 +14,8 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
-use causal_arm_sim::ros::{self, ns_from_time, topics};
-use causal_arm_sim::{Command, SimConfig, Simulator};
+use causal_arm_protocol::{ARM_DOF, Command, ns_from_time, sim_seed, step_messages, topics};
+use causal_arm_sim::{SimConfig, Simulator};
 use ros2_client::Publisher;
 
 use crate::{ACK_TOPIC, RunParams, run_param_specs, stop_flag, take_next};
@@ -78,6 +78,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         ..run.options.sim.clone()
     })?;
     let model = sim.model().clone();
+    let joint_names = model.joint_names();
     publish(
         &description,
         RosString {
@@ -135,7 +136,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
                 }
                 std::thread::sleep(Duration::from_micros(100));
             }
-            let m = ros::step_messages(&state, &model);
+            let m = step_messages(&state, &joint_names);
             publish(&joint_states, m.joint_states, topics::JOINT_STATES)?;
             publish(&ef_pose, m.ef_pose, topics::EF_POSE)?;
             publish(&object_pose, m.object_pose, topics::OBJECT_POSE)?;

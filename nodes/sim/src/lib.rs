@@ -22,15 +22,14 @@
 #![allow(clippy::needless_range_loop)]
 
 use ::nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
-use causal_arm_kinematics::{ARM_DOF, ArmModel, EF_FRAME, KinematicsError};
+use causal_arm_kinematics::{ArmModel, KinematicsError};
+use causal_arm_protocol::{ARM_DOF, Command, Scene, SimState, frames, scene};
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use rapier3d::math::{Pose, Rotation, Vector};
 use rapier3d::prelude::{
     ColliderBuilder, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, RigidBodyType,
 };
 use thiserror::Error;
-
-pub mod ros;
 
 /// Simulator settings; defaults follow the paper's protocol (PyBullet-like 240 Hz, 10 substeps).
 #[derive(Debug, Clone)]
@@ -92,16 +91,28 @@ impl Default for SimConfig {
             servo_gain: 40.0,
             velocity_scale: 1.0,
             capture_distance: 0.02,
-            cube_size: 0.05,
+            cube_size: scene::CUBE_SIZE,
             cube_mass: 0.1,
-            table_top_z: 0.20,
-            table_center: [0.58, 0.0],
-            table_half_extents: [0.20, 0.30],
+            table_top_z: scene::TABLE_TOP_Z,
+            table_center: scene::TABLE_CENTER,
+            table_half_extents: scene::TABLE_HALF_EXTENTS,
             spawn_margin: 0.05,
             friction: 0.8,
             home: [0.0, 0.5, 0.0, -1.2, 0.0, 0.8, 0.0],
             seed: 0,
             link_cylinders: LinkCylinders::Capsules,
+        }
+    }
+}
+
+impl SimConfig {
+    /// The table and cube this configuration builds, for judging its states (contexts).
+    pub fn scene(&self) -> Scene {
+        Scene {
+            table_top_z: self.table_top_z,
+            table_center: self.table_center,
+            table_half_extents: self.table_half_extents,
+            cube_size: self.cube_size,
         }
     }
 }
@@ -118,43 +129,6 @@ pub enum SimError {
     /// The configuration is inconsistent.
     #[error("invalid simulator configuration: {0}")]
     Config(String),
-}
-
-/// What the babbler asks for in one step.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Command {
-    /// Absolute joint targets, rad (clamped to the URDF limits by the motors).
-    pub joint_targets: [f64; ARM_DOF],
-    /// −1 switch off, 0 keep, +1 switch on.
-    pub magnet: i8,
-}
-
-/// Everything the simulator reports after a step, all at one sim time.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SimState {
-    /// Sim time, ns since the start of the run.
-    pub stamp_ns: u64,
-    /// Step index since the start of the run.
-    pub step: u64,
-    /// Episode index.
-    pub episode: u32,
-    /// Joint positions, rad.
-    pub joint_positions: [f64; ARM_DOF],
-    /// Joint velocities, rad/s.
-    pub joint_velocities: [f64; ARM_DOF],
-    /// Commanded joint torques are not modelled; the servo's acceleration times the joint
-    /// inertia is reported as effort, N m.
-    pub joint_efforts: [f64; ARM_DOF],
-    /// `ef` pose in the world frame.
-    pub ef_pose: Isometry3<f64>,
-    /// Cube pose in the world frame.
-    pub cube_pose: Isometry3<f64>,
-    /// Cube colour, RGB in [0, 1].
-    pub cube_rgb: [f32; 3],
-    /// Magnet switched on.
-    pub magnet_on: bool,
-    /// Magnet holds the cube.
-    pub holding: bool,
 }
 
 #[derive(Clone)]
@@ -676,7 +650,7 @@ impl Simulator {
 
     /// Name of the tool frame reported as `ef_pose`.
     pub fn ef_frame() -> &'static str {
-        EF_FRAME
+        frames::EF
     }
 }
 

@@ -2,8 +2,9 @@
 
 use std::path::PathBuf;
 
-use causal_arm_datagen::{GenerateOptions, RunPlan, generate};
+use causal_arm_datagen::{GenerateOptions, generate};
 use causal_arm_dataset::{ActionSource, Experiment, action_names, from_bag, state_names};
+use causal_arm_protocol::RunPlan;
 use causal_arm_trainer::model_file::describe;
 use causal_arm_trainer::structure::FoundGraph;
 use causal_arm_trainer::{

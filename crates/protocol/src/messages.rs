@@ -1,54 +1,23 @@
-//! The simulator's state as the ROS 2 messages it publishes each step.
+//! The simulator's state as the ROS 2 messages it publishes each step, the way back, and
+//! the babbler's answer as an `Action` message.
 //!
-//! Shared by the DDS node and the in-process `generate` path so both write the same
-//! messages with the same values.
+//! Shared by the DDS nodes, the in-process `generate` path and the ground truth's
+//! re-simulation so all write the same messages with the same values. Nothing here needs
+//! the simulator: the joint names come from the caller's arm model.
 
-use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_msgs::geometry_msgs::msg::{
     Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3,
 };
-use causal_arm_msgs::msg::{MagnetState, ObjectColor};
+use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::{ColorRGBA, Header};
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use nalgebra::Isometry3;
 
-use crate::SimState;
-
-/// Topic names of the graph (absolute, as users type them in `ros2 topic echo`).
-pub mod topics {
-    /// `sensor_msgs/msg/JointState`.
-    pub const JOINT_STATES: &str = "/joint_states";
-    /// `geometry_msgs/msg/PoseStamped` of the `ef` frame.
-    pub const EF_POSE: &str = "/end_effector/pose";
-    /// `geometry_msgs/msg/PoseStamped` of the cube.
-    pub const OBJECT_POSE: &str = "/object/pose";
-    /// `causal_arm_msgs/msg/ObjectColor`.
-    pub const OBJECT_COLOR: &str = "/object/color";
-    /// `causal_arm_msgs/msg/MagnetState`.
-    pub const MAGNET_STATE: &str = "/magnet/state";
-    /// `rosgraph_msgs/msg/Clock`.
-    pub const CLOCK: &str = "/clock";
-    /// `tf2_msgs/msg/TFMessage`: world→ef and world→object (arm links come from
-    /// `/joint_states` + `/robot_description` through robot_state_publisher, as usual).
-    pub const TF: &str = "/tf";
-    /// `std_msgs/msg/String`, latched.
-    pub const ROBOT_DESCRIPTION: &str = "/robot_description";
-    /// `causal_arm_msgs/msg/Action` from the babbler.
-    pub const ACTION: &str = "/babbler/action";
-}
-
-/// Frame names used in headers and /tf.
-pub mod frames {
-    /// Fixed world frame (the URDF root).
-    pub const WORLD: &str = "world";
-    /// Tool tip.
-    pub const EF: &str = "ef";
-    /// The cube.
-    pub const OBJECT: &str = "object";
-}
+use crate::step::{ARM_DOF, Command, SimState};
+use crate::topics::{self, frames, ns_from_time, time_from_ns};
 
 /// All state messages of one step.
 #[derive(Debug, Clone, PartialEq)]
@@ -67,19 +36,6 @@ pub struct StepMessages {
     pub clock: Clock,
     /// `/tf`.
     pub tf: TFMessage,
-}
-
-/// ROS time from nanoseconds of sim time.
-pub fn time_from_ns(ns: u64) -> Time {
-    Time {
-        sec: (ns / 1_000_000_000) as i32,
-        nanosec: (ns % 1_000_000_000) as u32,
-    }
-}
-
-/// Nanoseconds from a ROS time (negative times clamp to 0).
-pub fn ns_from_time(t: &Time) -> u64 {
-    (t.sec.max(0) as u64) * 1_000_000_000 + t.nanosec as u64
 }
 
 fn header(stamp: &Time, frame: &str) -> Header {
@@ -123,13 +79,14 @@ fn transform(stamp: &Time, child: &str, iso: &Isometry3<f64>) -> TransformStampe
     }
 }
 
-/// The messages the simulator publishes for `state`.
-pub fn step_messages(state: &SimState, model: &ArmModel) -> StepMessages {
+/// The messages the simulator publishes for `state`; `joint_names` are the arm model's
+/// actuated joints in chain order (`ArmModel::joint_names`).
+pub fn step_messages(state: &SimState, joint_names: &[&str]) -> StepMessages {
     let stamp = time_from_ns(state.stamp_ns);
     StepMessages {
         joint_states: JointState {
             header: header(&stamp, ""),
-            name: model.joint_names().iter().map(|n| n.to_string()).collect(),
+            name: joint_names.iter().map(|n| n.to_string()).collect(),
             position: state.joint_positions.to_vec(),
             velocity: state.joint_velocities.to_vec(),
             effort: state.joint_efforts.to_vec(),
@@ -194,13 +151,13 @@ fn joints7(
     values: &[f64],
     field: &str,
     stamp_ns: u64,
-) -> Result<[f64; causal_arm_kinematics::ARM_DOF], StateFromMessagesError> {
+) -> Result<[f64; ARM_DOF], StateFromMessagesError> {
     values.try_into().map_err(|_| StateFromMessagesError {
         stamp_ns,
         problem: format!(
             "/joint_states {field} has {} values, expected {}",
             values.len(),
-            causal_arm_kinematics::ARM_DOF
+            ARM_DOF
         ),
     })
 }
@@ -249,27 +206,74 @@ pub fn state_from_messages(
     })
 }
 
+/// The Action message answering `state` with `command`.
+pub fn action_message(state: &SimState, command: &Command, step_in_episode: u64) -> Action {
+    Action {
+        header: Header {
+            stamp: time_from_ns(state.stamp_ns),
+            frame_id: String::new(),
+        },
+        episode: state.episode,
+        step: step_in_episode as u32,
+        joint_deltas: command
+            .joint_targets
+            .iter()
+            .zip(&state.joint_positions)
+            .map(|(t, q)| t - q)
+            .collect(),
+        joint_targets: command.joint_targets.to_vec(),
+        magnet: command.magnet,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Command, SimConfig, Simulator};
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    const JOINTS: [&str; ARM_DOF] = [
+        "iiwa_joint_1",
+        "iiwa_joint_2",
+        "iiwa_joint_3",
+        "iiwa_joint_4",
+        "iiwa_joint_5",
+        "iiwa_joint_6",
+        "iiwa_joint_7",
+    ];
+
+    /// A state as the simulator could report it after a few steps, built by hand.
+    fn state() -> SimState {
+        SimState {
+            stamp_ns: 1_041_666_667,
+            step: 25,
+            episode: 2,
+            joint_positions: [0.1, 0.6, 0.0, -1.1, 0.2, 0.7, 0.3],
+            joint_velocities: [0.01, -0.2, 0.0, 0.3, -0.05, 0.0, 1.5],
+            joint_efforts: [1.0, -2.5, 0.0, 3.25, 0.0, -0.5, 0.125],
+            ef_pose: Isometry3::from_parts(
+                Translation3::new(0.55, -0.1, 0.42),
+                UnitQuaternion::from_euler_angles(3.0, 0.1, -0.4),
+            ),
+            cube_pose: Isometry3::from_parts(
+                Translation3::new(0.6, 0.05, 0.225),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, 1.2),
+            ),
+            cube_rgb: [0.25, 0.5, 0.75],
+            magnet_on: true,
+            holding: false,
+        }
+    }
 
     #[test]
     fn messages_round_trip_to_the_same_state() {
-        let mut sim = Simulator::new(SimConfig {
-            seed: 4,
-            ..SimConfig::default()
-        })
-        .unwrap();
-        let state = sim
-            .step(&Command {
-                joint_targets: [0.1, 0.6, 0.0, -1.1, 0.2, 0.7, 0.3],
-                magnet: 1,
-            })
-            .unwrap();
-        let m = step_messages(&state, sim.model());
+        let state = state();
+        let m = step_messages(&state, &JOINTS);
         assert_eq!(m.joint_states.name[6], "iiwa_joint_7");
         assert_eq!(m.clock.clock, time_from_ns(state.stamp_ns));
+        assert_eq!(m.ef_pose.header.frame_id, frames::WORLD);
+        assert_eq!(m.object_color.header.frame_id, frames::OBJECT);
+        let children: Vec<_> = m.tf.transforms.iter().map(|t| &t.child_frame_id).collect();
+        assert_eq!(children, [frames::EF, frames::OBJECT]);
         let back = state_from_messages(
             &m.joint_states,
             &m.ef_pose,
@@ -280,14 +284,7 @@ mod tests {
             state.episode,
         )
         .unwrap();
-        assert_eq!(back.joint_positions, state.joint_positions);
-        assert_eq!(back.ef_pose.translation, state.ef_pose.translation);
-        assert_eq!(back.cube_pose.translation, state.cube_pose.translation);
-        assert_eq!(back.cube_rgb, state.cube_rgb);
-        assert_eq!(
-            (back.magnet_on, back.holding),
-            (state.magnet_on, state.holding)
-        );
+        assert_eq!(back, state);
         let mut late = m.magnet.clone();
         late.header.stamp.nanosec += 1;
         let err = state_from_messages(
@@ -301,19 +298,39 @@ mod tests {
         )
         .unwrap_err();
         assert!(err.to_string().contains("/magnet/state has stamp"), "{err}");
+        let mut short = m.joint_states.clone();
+        short.velocity.pop();
+        let err = state_from_messages(
+            &short,
+            &m.ef_pose,
+            &m.object_pose,
+            &m.object_color,
+            &m.magnet,
+            0,
+            0,
+        )
+        .unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("/joint_states velocity has 6 values, expected 7"),
+            "{err}"
+        );
     }
 
     #[test]
-    fn time_conversion_is_exact() {
-        for ns in [
-            0,
-            1,
-            999_999_999,
-            1_000_000_000,
-            41_666_667,
-            123_456_789_012,
-        ] {
-            assert_eq!(ns_from_time(&time_from_ns(ns)), ns);
-        }
+    fn action_answers_the_state_it_was_computed_from() {
+        let state = state();
+        let command = Command {
+            joint_targets: [0.2, 0.6, -0.5, -1.0, 0.2, 0.7, 0.0],
+            magnet: -1,
+        };
+        let a = action_message(&state, &command, 7);
+        assert_eq!(a.header.stamp, time_from_ns(state.stamp_ns));
+        assert_eq!((a.episode, a.step, a.magnet), (2, 7, -1));
+        assert_eq!(a.joint_targets, command.joint_targets);
+        let deltas: Vec<f64> = (0..ARM_DOF)
+            .map(|i| command.joint_targets[i] - state.joint_positions[i])
+            .collect();
+        assert_eq!(a.joint_deltas, deltas);
     }
 }

@@ -1,0 +1,123 @@
+//! The babblers against the simulator: what each experiment's babbling does to the arm
+//! and the cube. They live here, next to the step loop that joins the two, because the
+//! babbler crate does not depend on the simulator.
+
+use causal_arm_babbler::{Exp1Babbler, Exp1Config, Exp2Babbler, Exp2Config};
+use causal_arm_kinematics::ArmModel;
+use causal_arm_protocol::ARM_DOF;
+use causal_arm_sim::{SimConfig, Simulator};
+
+#[test]
+fn exp1_targets_are_normal_within_limits() {
+    let model = ArmModel::embedded();
+    let mut sim = Simulator::new(SimConfig::default()).unwrap();
+    let mut b = Exp1Babbler::new(
+        &model,
+        &Exp1Config {
+            seed: 1,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let n = 20_000;
+    let mut sum = [0.0; ARM_DOF];
+    let mut sq = [0.0; ARM_DOF];
+    let state = sim.state();
+    for _ in 0..n {
+        let c = b.next(&state);
+        model.check_joints(&c.joint_targets).unwrap();
+        for i in 0..ARM_DOF {
+            sum[i] += c.joint_targets[i];
+            sq[i] += c.joint_targets[i].powi(2);
+        }
+    }
+    for i in 0..ARM_DOF {
+        let mean = sum[i] / n as f64;
+        let sd = (sq[i] / n as f64 - mean * mean).sqrt();
+        assert!(
+            mean.abs() < 0.01 && (sd - 0.35).abs() < 0.01,
+            "joint {i}: mean {mean} sd {sd}"
+        );
+    }
+    let _ = sim.step(&b.next(&state)).unwrap();
+    assert!(
+        Exp1Babbler::new(
+            &model,
+            &Exp1Config {
+                sigma: -1.0,
+                ..Default::default()
+            }
+        )
+        .is_err()
+    );
+}
+
+#[test]
+fn exp2_picks_lifts_and_drops_the_cube() {
+    let model = ArmModel::embedded();
+    let mut sim = Simulator::new(SimConfig {
+        seed: 11,
+        ..SimConfig::default()
+    })
+    .unwrap();
+    let mut b = Exp2Babbler::new(
+        &model,
+        Exp2Config {
+            seed: 11,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let table_z = 0.225;
+    let mut state = sim.state();
+    let (mut picks, mut lifted_high, mut drops) = (0, false, 0u32);
+    let mut was_holding = false;
+    let (mut on_table, mut repicked, mut settle_in) = (0, 0, None::<u32>);
+    let mut magnet_was_on = state.magnet_on;
+    for _ in 0..2000 {
+        let cmd = b.next(&state);
+        // Every "off" command switches a magnet that is on (none is unobservable).
+        if cmd.magnet == -1 {
+            assert!(magnet_was_on, "off command while the magnet is already off");
+        }
+        state = sim.step(&cmd).unwrap();
+        magnet_was_on = state.magnet_on;
+        if state.holding && !was_holding {
+            picks += 1;
+        }
+        if !state.holding && was_holding {
+            drops += 1;
+            settle_in = Some(30);
+        }
+        if let Some(n) = settle_in.as_mut() {
+            *n -= 1;
+            if *n == 0 {
+                settle_in = None;
+                // A dropped cube comes to rest on the table top, not the floor (unless
+                // it has been picked up again).
+                if state.holding {
+                    repicked += 1;
+                } else if (state.cube_pose.translation.z - table_z).abs() < 0.01 {
+                    on_table += 1;
+                }
+            }
+        }
+        if state.holding && state.cube_pose.translation.z > table_z + 0.05 {
+            lifted_high = true;
+        }
+        // The cube only leaves the table while held (or while falling right after a drop).
+        if !state.holding && !was_holding {
+            let z = state.cube_pose.translation.z;
+            assert!(z < 1.0, "cube flew to {z}");
+        }
+        was_holding = state.holding;
+    }
+    assert!(picks >= 3, "only {picks} picks in 2000 steps");
+    assert!(drops >= 2, "only {drops} drops");
+    assert!(lifted_high, "cube never lifted");
+    let settled = drops - repicked - u32::from(settle_in.is_some());
+    assert!(
+        on_table * 10 >= settled * 9,
+        "only {on_table} of {settled} dropped cubes rest on the table"
+    );
+}

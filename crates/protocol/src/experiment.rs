@@ -1,0 +1,162 @@
+//! The paper's experiments and their sizes, the keys a dataset bag records about its run,
+//! and how a run's seed becomes the simulator's and the babbler's.
+//!
+//! The generator writes these and the dataset builder, the ground truth and the CLI read
+//! them; none of the readers should have to build the generator to learn their names.
+
+use std::str::FromStr;
+
+/// Which of the paper's experiments.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Experiment {
+    /// Kinematics: random joint configurations.
+    Exp1,
+    /// Intuitive physics: magnet, cube, table.
+    Exp2,
+}
+
+impl FromStr for Experiment {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "exp1" => Ok(Self::Exp1),
+            "exp2" => Ok(Self::Exp2),
+            other => Err(format!(
+                "unknown experiment {other:?}: expected exp1 or exp2"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for Experiment {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Exp1 => "exp1",
+            Self::Exp2 => "exp2",
+        })
+    }
+}
+
+/// Size presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Profile {
+    /// The paper's protocol: 500,000 steps (exp 1); 4,000 episodes × 500 (exp 2).
+    Paper,
+    /// A demo that runs in about a minute.
+    Quick,
+}
+
+impl FromStr for Profile {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "paper" => Ok(Self::Paper),
+            "quick" => Ok(Self::Quick),
+            other => Err(format!(
+                "unknown profile {other:?}: expected paper or quick"
+            )),
+        }
+    }
+}
+
+/// How many episodes of how many steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RunPlan {
+    /// Episodes (exp 1 runs one long episode).
+    pub episodes: u64,
+    /// Steps per episode.
+    pub steps_per_episode: u64,
+}
+
+impl RunPlan {
+    /// The profile's plan for `experiment`.
+    pub fn for_profile(experiment: Experiment, profile: Profile) -> Self {
+        match (experiment, profile) {
+            (Experiment::Exp1, Profile::Paper) => Self {
+                episodes: 1,
+                steps_per_episode: 500_000,
+            },
+            (Experiment::Exp1, Profile::Quick) => Self {
+                episodes: 1,
+                steps_per_episode: 5_000,
+            },
+            (Experiment::Exp2, Profile::Paper) => Self {
+                episodes: 4_000,
+                steps_per_episode: 500,
+            },
+            (Experiment::Exp2, Profile::Quick) => Self {
+                episodes: 20,
+                steps_per_episode: 500,
+            },
+        }
+    }
+
+    /// Total steps.
+    pub fn total_steps(&self) -> u64 {
+        self.episodes * self.steps_per_episode
+    }
+}
+
+/// `custom_data` keys a dataset bag carries (written by datagen's
+/// `GenerateOptions::bag_custom_data`, read by the dataset builder and the ground truth).
+pub mod bag_keys {
+    /// `exp1` or `exp2`.
+    pub const EXPERIMENT: &str = "causal_arm.experiment";
+    /// Babbling seed.
+    pub const SEED: &str = "causal_arm.seed";
+    /// Episodes in the run.
+    pub const EPISODES: &str = "causal_arm.episodes";
+    /// Steps per episode.
+    pub const STEPS_PER_EPISODE: &str = "causal_arm.steps_per_episode";
+    /// Exp 1 babbling spread, rad.
+    pub const SIGMA: &str = "causal_arm.sigma";
+    /// Scale of the URDF joint velocity limits.
+    pub const VELOCITY_SCALE: &str = "causal_arm.velocity_scale";
+    /// Exp 2 babbler moves while switching the magnet (`true`/`false`; bags written before
+    /// it became the default lack the key and held the arm still).
+    pub const MOVE_WHILE_SWITCHING: &str = "causal_arm.move_while_switching";
+}
+
+/// Seed of the simulator for a run seed (decorrelated from the babbler's).
+pub fn sim_seed(seed: u64) -> u64 {
+    seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5151
+}
+
+/// Seed of the babbler for a run seed.
+pub fn babbler_seed(seed: u64) -> u64 {
+    seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ 0xBABB
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_parse_back_and_unknown_ones_are_named() {
+        for e in [Experiment::Exp1, Experiment::Exp2] {
+            assert_eq!(e.to_string().parse::<Experiment>(), Ok(e));
+        }
+        let err = "exp3".parse::<Experiment>().unwrap_err();
+        assert!(
+            err.contains("\"exp3\"") && err.contains("exp1 or exp2"),
+            "{err}"
+        );
+        assert_eq!("quick".parse::<Profile>(), Ok(Profile::Quick));
+        assert!("fast".parse::<Profile>().is_err());
+    }
+
+    #[test]
+    fn plans_follow_the_paper() {
+        let paper1 = RunPlan::for_profile(Experiment::Exp1, Profile::Paper);
+        assert_eq!((paper1.episodes, paper1.total_steps()), (1, 500_000));
+        let paper2 = RunPlan::for_profile(Experiment::Exp2, Profile::Paper);
+        assert_eq!((paper2.episodes, paper2.steps_per_episode), (4_000, 500));
+    }
+
+    /// Every bag's content depends on these; a change would silently change all datasets.
+    #[test]
+    fn seeds_are_stable() {
+        assert_eq!(sim_seed(3), 0xdaa6_6d2c_7ddf_256e);
+        assert_eq!(babbler_seed(3), 0x751f_de98_74b8_7db2);
+    }
+}

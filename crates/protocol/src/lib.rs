@@ -1,0 +1,23 @@
+//! The vocabulary the project's crates share: what the graph's topics and frames are called
+//! and how stamps are written, what the simulator and the babbler exchange each step and
+//! how that becomes ROS messages; which experiments there are, what a bag records about its
+//! run and how a run's seed is split; where the table and the cube are.
+//!
+//! Libraries (dataset, trainer, explainer, truth) read bags and speak of experiments; they
+//! need these names and shapes, not the simulator or the babbler that produce them. Keeping
+//! them here, with no DDS and no physics behind them, lets every crate agree on them without
+//! building rapier3d or ros2-client.
+
+pub mod experiment;
+pub mod messages;
+pub mod scene;
+pub mod step;
+pub mod topics;
+
+pub use experiment::{Experiment, Profile, RunPlan, babbler_seed, bag_keys, sim_seed};
+pub use messages::{
+    StateFromMessagesError, StepMessages, action_message, state_from_messages, step_messages,
+};
+pub use scene::Scene;
+pub use step::{ARM_DOF, Command, SimState};
+pub use topics::{frames, ns_from_time, time_from_ns};

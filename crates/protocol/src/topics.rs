@@ -1,0 +1,70 @@
+//! Topic names of the graph (absolute, as users type them in `ros2 topic echo`), the frame
+//! names of headers and `/tf`, and the conversion between sim time and ROS stamps.
+//!
+//! The simulator publishes, the babbler and recorder subscribe and the dataset reads bags by
+//! these names; one table keeps them from drifting apart.
+
+use causal_arm_msgs::builtin_interfaces::msg::Time;
+
+/// `sensor_msgs/msg/JointState`.
+pub const JOINT_STATES: &str = "/joint_states";
+/// `geometry_msgs/msg/PoseStamped` of the `ef` frame.
+pub const EF_POSE: &str = "/end_effector/pose";
+/// `geometry_msgs/msg/PoseStamped` of the cube.
+pub const OBJECT_POSE: &str = "/object/pose";
+/// `causal_arm_msgs/msg/ObjectColor`.
+pub const OBJECT_COLOR: &str = "/object/color";
+/// `causal_arm_msgs/msg/MagnetState`.
+pub const MAGNET_STATE: &str = "/magnet/state";
+/// `rosgraph_msgs/msg/Clock`.
+pub const CLOCK: &str = "/clock";
+/// `tf2_msgs/msg/TFMessage`: world→ef and world→object (arm links come from
+/// `/joint_states` + `/robot_description` through robot_state_publisher, as usual).
+pub const TF: &str = "/tf";
+/// `std_msgs/msg/String`, latched.
+pub const ROBOT_DESCRIPTION: &str = "/robot_description";
+/// `causal_arm_msgs/msg/Action` from the babbler.
+pub const ACTION: &str = "/babbler/action";
+
+/// Frame names used in headers and /tf.
+pub mod frames {
+    /// Fixed world frame (the URDF root).
+    pub const WORLD: &str = "world";
+    /// Tool tip: the tool frame whose pose the experiments record (the link the arm
+    /// model's kinematic chain ends at).
+    pub const EF: &str = "ef";
+    /// The cube.
+    pub const OBJECT: &str = "object";
+}
+
+/// ROS time from nanoseconds of sim time.
+pub fn time_from_ns(ns: u64) -> Time {
+    Time {
+        sec: (ns / 1_000_000_000) as i32,
+        nanosec: (ns % 1_000_000_000) as u32,
+    }
+}
+
+/// Nanoseconds from a ROS time (negative times clamp to 0).
+pub fn ns_from_time(t: &Time) -> u64 {
+    (t.sec.max(0) as u64) * 1_000_000_000 + t.nanosec as u64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn time_conversion_is_exact() {
+        for ns in [
+            0,
+            1,
+            999_999_999,
+            1_000_000_000,
+            41_666_667,
+            123_456_789_012,
+        ] {
+            assert_eq!(ns_from_time(&time_from_ns(ns)), ns);
+        }
+    }
+}

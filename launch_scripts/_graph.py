@@ -1,22 +1,66 @@
 """Shared builder of the causal-arm data-generation graph for `ros2 launch`.
 
-The node binaries (causal_arm_sim, causal_arm_babbler, causal_arm_recorder) are looked up
-on PATH or in CAUSAL_ARM_BIN_DIR (default: <repo>/target/release). Launch arguments mirror
-`causal-arm launch`: profile, steps, episodes, seed, sigma, velocity_scale,
-move_while_switching, out, overwrite.
+The graph (nodes in start order, their parameters with defaults, which node ends the run)
+is read from launch_scripts/graph.toml, the file `causal-arm launch`, `causal-arm
+generate` and the nodes read too; CAUSAL_ARM_GRAPH=FILE replaces it for all of them.
+Every run parameter of the file is a launch argument with the file's default, plus `out`
+and `overwrite` for the recorder.
+
+The node binaries are looked up on PATH or in CAUSAL_ARM_BIN_DIR (default:
+<repo>/target/release).
 """
 
 import os
 import pathlib
-
-from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, EmitEvent, RegisterEventHandler
-from launch.actions import ExecuteProcess
-from launch.event_handlers import OnProcessExit
-from launch.events import Shutdown
-from launch.substitutions import LaunchConfiguration
+import tomllib
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
+
+# Launch arguments that set a node's own parameter: (argument, node parameter).
+NODE_ARGUMENTS = {"causal_arm_recorder": [("out", "output"), ("overwrite", "overwrite")]}
+
+
+def graph_file() -> pathlib.Path:
+    return pathlib.Path(os.environ.get("CAUSAL_ARM_GRAPH", REPO / "launch_scripts" / "graph.toml"))
+
+
+def load_graph() -> dict:
+    with open(graph_file(), "rb") as f:
+        return tomllib.load(f)
+
+
+def ros_text(value) -> str:
+    """A default as `-p name:=value` writes it (TOML booleans are lowercase in ROS too)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def launch_arguments(spec: dict, default_out: str) -> dict:
+    """Launch argument name -> default text."""
+    args = {p["name"]: ros_text(p["default"]) for p in spec["run_params"]}
+    args["out"] = default_out
+    args["overwrite"] = "false"
+    return args
+
+
+def node_commands(experiment: str, values: dict, spec: dict = None) -> list:
+    """(node name, ROS arguments) of every node in start order; `values` maps each launch
+    argument to its value (text, or a launch substitution)."""
+    spec = spec or load_graph()
+    run = [p["name"] for p in spec["run_params"] if p["name"] != "experiment"]
+    commands = []
+    for node in spec["nodes"]:
+        items = [["experiment:=", experiment]]
+        items += [[name, ":=", values[name]] for name in run]
+        own = {p["name"] for p in node.get("params", [])}
+        items += [[param, ":=", values[arg]] for arg, param in NODE_ARGUMENTS.get(node["name"], [])
+                  if param in own]
+        args = ["--ros-args"]
+        for item in items:
+            args += ["-p", item]
+        commands.append((node["name"], args))
+    return commands
 
 
 def _binary(name: str) -> str:
@@ -25,38 +69,28 @@ def _binary(name: str) -> str:
     return str(candidate) if candidate.exists() else name
 
 
-def graph(experiment: str, default_out: str) -> LaunchDescription:
-    args = {
-        "profile": "quick",
-        "steps": "0",
-        "episodes": "0",
-        "seed": "0",
-        "sigma": "0.35",
-        "velocity_scale": "1.0",
-        "move_while_switching": "true",
-        "out": default_out,
-        "overwrite": "false",
-    }
+def graph(experiment: str, default_out: str):
+    """The LaunchDescription of the graph: the nodes of graph.toml with its defaults."""
+    from launch import LaunchDescription
+    from launch.actions import DeclareLaunchArgument, EmitEvent, ExecuteProcess
+    from launch.actions import RegisterEventHandler
+    from launch.event_handlers import OnProcessExit
+    from launch.events import Shutdown
+    from launch.substitutions import LaunchConfiguration
+
+    spec = load_graph()
+    args = launch_arguments(spec, default_out)
     declared = [DeclareLaunchArgument(k, default_value=v) for k, v in args.items()]
-
-    def params(*extra):
-        items = ["experiment:=" + experiment]
-        for key in ("profile", "steps", "episodes", "seed", "sigma", "velocity_scale",
-                    "move_while_switching"):
-            items.append([key, ":=", LaunchConfiguration(key)])
-        items.extend(extra)
-        out = ["--ros-args"]
-        for item in items:
-            out += ["-p", item]
-        return out
-
-    recorder = ExecuteProcess(
-        cmd=[_binary("causal_arm_recorder"),
-             *params(["output:=", LaunchConfiguration("out")], ["overwrite:=", LaunchConfiguration("overwrite")])],
-        output="screen", name="causal_arm_recorder")
-    babbler = ExecuteProcess(cmd=[_binary("causal_arm_babbler"), *params()], output="screen",
-                             name="causal_arm_babbler")
-    sim = ExecuteProcess(cmd=[_binary("causal_arm_sim"), *params()], output="screen", name="causal_arm_sim")
-    # When the recorder has written the bag, shut the graph down.
-    done = RegisterEventHandler(OnProcessExit(target_action=recorder, on_exit=[EmitEvent(event=Shutdown())]))
-    return LaunchDescription([*declared, recorder, babbler, sim, done])
+    values = {k: LaunchConfiguration(k) for k in args}
+    actions = list(declared)
+    ends_run = None
+    for (name, ros_args), node in zip(node_commands(experiment, values, spec), spec["nodes"]):
+        process = ExecuteProcess(cmd=[_binary(name), *ros_args], output="screen", name=name)
+        actions.append(process)
+        if node.get("ends_run"):
+            ends_run = process
+    # When the node that ends the run (the recorder, once the bag is written) exits, shut
+    # the graph down.
+    actions.append(RegisterEventHandler(OnProcessExit(target_action=ends_run,
+                                                      on_exit=[EmitEvent(event=Shutdown())])))
+    return LaunchDescription(actions)

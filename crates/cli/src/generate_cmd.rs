@@ -6,17 +6,19 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use causal_arm_datagen::{GenerateOptions, generate};
+use causal_arm_protocol::graph::run_default_text;
 use causal_arm_protocol::{Experiment, Profile, RunPlan};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
-/// Arguments shared by `generate` and `launch`.
+/// Arguments shared by `generate` and `launch`; the run's defaults come from the graph
+/// file (launch_scripts/graph.toml), as the nodes' do.
 #[derive(Debug, Args)]
 pub struct GenerateArgs {
     /// exp1 (kinematics) or exp2 (magnet, cube, table).
     experiment: String,
     /// paper (the paper's dataset size) or quick (a demo in about a minute).
-    #[arg(long, default_value = "quick")]
+    #[arg(long, default_value = run_default_text("profile"))]
     profile: String,
     /// Override the number of steps (exp1) — must be positive.
     #[arg(long, allow_negative_numbers = true)]
@@ -25,7 +27,7 @@ pub struct GenerateArgs {
     #[arg(long, allow_negative_numbers = true)]
     episodes: Option<i64>,
     /// Seed of simulator and babbler.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value = run_default_text("seed"))]
     seed: u64,
     /// Bag directory to write (refused if it already holds a bag, unless --overwrite).
     #[arg(long)]
@@ -34,16 +36,17 @@ pub struct GenerateArgs {
     #[arg(long)]
     overwrite: bool,
     /// Standard deviation of the exp1 joint targets, rad.
-    #[arg(long, default_value_t = 0.35)]
+    #[arg(long, default_value = run_default_text("sigma"))]
     sigma: f64,
     /// Scale of the URDF joint velocity limits (1 = the real iiwa; the paper's arm moved
     /// faster, see docs/RESULTS.md).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value = run_default_text("velocity_scale"))]
     velocity_scale: f64,
     /// Exp 2: move while switching the magnet (default), so the data can show that the
     /// magnet does not move the joints; `false` holds the arm still at every switch, as
     /// bags made before this default did (see docs/RESULTS.md).
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, num_args = 0..=1,
+    #[arg(long, default_value = run_default_text("move_while_switching"),
+          action = clap::ArgAction::Set, num_args = 0..=1,
           default_missing_value = "true", value_name = "BOOL")]
     pub move_while_switching: bool,
 }

@@ -13,7 +13,21 @@ use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::ns_from_time;
 
+use causal_arm_datagen::GenerateOptions;
+use causal_arm_graph::RunParams;
+use causal_arm_protocol::graph::graph;
+
 use crate::generate_cmd::{GenerateArgs, step_progress};
+
+/// `causal-arm launch`: the run's options, as for `generate`.
+#[derive(Debug, clap::Args)]
+pub struct LaunchArgs {
+    #[command(flatten)]
+    pub generate: GenerateArgs,
+    /// Print each node's command line (from launch_scripts/graph.toml) and exit.
+    #[arg(long)]
+    pub print_commands: bool,
+}
 
 /// Directory holding the node binaries (next to this executable).
 fn node_binary(name: &str) -> anyhow::Result<PathBuf> {
@@ -51,10 +65,43 @@ fn wait_with_timeout(
     }
 }
 
+/// Each node's name and ROS arguments, in the graph file's start order: the run's
+/// parameters for every node, and the recorder's output.
+pub fn node_commands(options: &GenerateOptions) -> anyhow::Result<Vec<(String, Vec<String>)>> {
+    let run = RunParams::ros_params(options);
+    let node_values = [
+        ("output", options.out.display().to_string()),
+        ("overwrite", options.overwrite.to_string()),
+    ];
+    Ok(graph()?
+        .nodes
+        .iter()
+        .map(|node| {
+            let own = node.params.iter().filter_map(|p| {
+                let value = node_values.iter().find(|(name, _)| *name == p.name)?;
+                Some(format!("{}:={}", p.name, value.1))
+            });
+            let mut args = vec!["--ros-args".to_owned()];
+            for param in run.iter().cloned().chain(own) {
+                args.push("-p".to_owned());
+                args.push(param);
+            }
+            (node.name.clone(), args)
+        })
+        .collect())
+}
+
 /// Runs `causal-arm launch`.
-pub fn run(args: &GenerateArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
-    let options = args.options()?;
+pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
+    let options = args.generate.options()?;
     causal_arm_datagen::validate(&options)?;
+    let commands = node_commands(&options)?;
+    if args.print_commands {
+        for (name, args) in &commands {
+            println!("{name} {}", args.join(" "));
+        }
+        return Ok(());
+    }
     if !options.overwrite
         && let Some(found) = causal_arm_recorder::existing_bag(&options.out)
     {
@@ -63,91 +110,28 @@ pub fn run(args: &GenerateArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
             options.out.display()
         );
     }
-    let plan = options.plan;
-    let mut params = vec![
-        format!("experiment:={}", options.experiment),
-        format!("seed:={}", options.seed),
-        format!("sigma:={}", options.exp1.sigma),
-        format!("velocity_scale:={}", options.sim.velocity_scale),
-        format!(
-            "move_while_switching:={}",
-            options.exp2.move_while_switching
-        ),
-        format!("steps:={}", plan.steps_per_episode),
-        format!("episodes:={}", plan.episodes),
-    ];
-    let common = |extra: &[String]| -> Vec<String> {
-        let mut v = vec!["--ros-args".to_owned()];
-        for p in params.iter().chain(extra) {
-            v.push("-p".to_owned());
-            v.push(p.clone());
-        }
-        v
-    };
-    let recorder_args = common(&[
-        format!("output:={}", options.out.display()),
-        format!("overwrite:={}", options.overwrite),
-    ]);
-    let sim_args = common(&[]);
-    let babbler_args = common(&[]);
-    params.clear();
-
     let stop = Arc::new(AtomicBool::new(false));
     let setter = stop.clone();
     let _ = ctrlc::set_handler(move || setter.store(true, Ordering::SeqCst));
 
-    let spawn = |name: &str, args: &[String]| -> anyhow::Result<Child> {
-        Command::new(node_binary(name)?)
-            .args(args)
+    let mut children = Vec::new();
+    for (name, args) in commands {
+        let child = Command::new(node_binary(&name)?)
+            .args(&args)
             .stdin(Stdio::null())
             .spawn()
-            .with_context(|| format!("starting {name}"))
-    };
-    let mut recorder = spawn("causal_arm_recorder", &recorder_args)?;
-    let mut babbler = spawn("causal_arm_babbler", &babbler_args)?;
-    let mut sim = spawn("causal_arm_sim", &sim_args)?;
-
-    // Follow progress through the recorder's acknowledgements.
-    let mut node = RosNode::new("causal_arm_launch", &[], ros_args)?;
-    let acks = node.subscription::<Clock>(causal_arm_graph::ACK_TOPIC, qos::default_reliable())?;
-    let step_ns = options.sim.dt * options.sim.substeps as f64 * 1e9;
-    let total = plan.total_steps();
-    let bar = step_progress(
-        total,
-        &format!("{} seed {} (DDS graph)", options.experiment, options.seed),
-    );
+            .with_context(|| format!("starting {name}"))?;
+        children.push((name, child));
+    }
+    let ends_run = graph()?
+        .nodes
+        .iter()
+        .position(|n| n.ends_run)
+        .ok_or_else(|| anyhow::anyhow!("the graph has no node that ends the run"))?;
+    let (recorder_name, mut recorder) = children.remove(ends_run);
     let start = Instant::now();
-    let recorder_status = loop {
-        while let Ok(Some((ack, _))) = acks.take() {
-            bar.set_position(
-                ((ns_from_time(&ack.clock) as f64 / step_ns).round() as u64 + 1).min(total),
-            );
-        }
-        if let Some(status) = recorder.try_wait()? {
-            break status;
-        }
-        if stop.load(Ordering::SeqCst) {
-            interrupt(&recorder);
-        }
-        for (name, child) in [
-            ("causal_arm_sim", &mut sim),
-            ("causal_arm_babbler", &mut babbler),
-        ] {
-            if let Some(status) = child.try_wait()?
-                && !status.success()
-            {
-                interrupt(&recorder);
-                bar.abandon();
-                let _ = wait_with_timeout(&mut recorder, Duration::from_secs(30));
-                bail!(
-                    "{name} failed ({status}); the recorder finalized the bag with the steps it had"
-                );
-            }
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    bar.finish();
-    for child in [&mut sim, &mut babbler] {
+    let recorder_status = follow_run(&options, ros_args, &stop, &mut recorder, &mut children)?;
+    for (_, child) in &mut children {
         if child.try_wait()?.is_none() {
             interrupt(child);
         }
@@ -157,13 +141,101 @@ pub fn run(args: &GenerateArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
         }
     }
     if !recorder_status.success() {
-        bail!("causal_arm_recorder failed ({recorder_status})");
+        bail!("{recorder_name} failed ({recorder_status})");
     }
     let secs = start.elapsed().as_secs_f64();
+    let total = options.plan.total_steps();
     println!(
         "bag: {} ({total} steps over DDS in {secs:.1} s, {:.0} steps/s)",
         options.out.display(),
         total as f64 / secs
     );
     Ok(())
+}
+
+/// Shows the run's progress from the recorder's acknowledgements until the recorder
+/// exits; Ctrl-C asks the recorder to finalize, and another node failing ends the run
+/// with the bag finalized.
+fn follow_run(
+    options: &GenerateOptions,
+    ros_args: &RosArgs,
+    stop: &AtomicBool,
+    recorder: &mut Child,
+    others: &mut [(String, Child)],
+) -> anyhow::Result<std::process::ExitStatus> {
+    let mut node = RosNode::new("causal_arm_launch", &[], ros_args)?;
+    let acks = node.subscription::<Clock>(causal_arm_graph::ACK_TOPIC, qos::default_reliable())?;
+    let step_ns = options.sim.dt * options.sim.substeps as f64 * 1e9;
+    let total = options.plan.total_steps();
+    let bar = step_progress(
+        total,
+        &format!("{} seed {} (DDS graph)", options.experiment, options.seed),
+    );
+    loop {
+        while let Ok(Some((ack, _))) = acks.take() {
+            bar.set_position(
+                ((ns_from_time(&ack.clock) as f64 / step_ns).round() as u64 + 1).min(total),
+            );
+        }
+        if let Some(status) = recorder.try_wait()? {
+            bar.finish();
+            return Ok(status);
+        }
+        if stop.load(Ordering::SeqCst) {
+            interrupt(recorder);
+        }
+        for (name, child) in others.iter_mut() {
+            if let Some(status) = child.try_wait()?
+                && !status.success()
+            {
+                interrupt(recorder);
+                bar.abandon();
+                let _ = wait_with_timeout(recorder, Duration::from_secs(30));
+                bail!(
+                    "{name} failed ({status}); the recorder finalized the bag with the steps it had"
+                );
+            }
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_node_of_the_graph_gets_the_run_and_the_recorder_its_output() {
+        let mut options = GenerateOptions::new(
+            causal_arm_protocol::Experiment::Exp2,
+            causal_arm_protocol::RunPlan {
+                episodes: 3,
+                steps_per_episode: 500,
+            },
+            7,
+            "bags/x",
+        );
+        options.exp1.sigma = 0.2;
+        let commands = node_commands(&options).unwrap();
+        let names: Vec<&str> = commands.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "causal_arm_recorder",
+                "causal_arm_babbler",
+                "causal_arm_sim"
+            ]
+        );
+        for (name, args) in &commands {
+            let line = args.join(" ");
+            for p in ["experiment:=exp2", "seed:=7", "sigma:=0.2", "episodes:=3"] {
+                assert!(line.contains(p), "{name}: {line}");
+            }
+            assert_eq!(
+                line.contains("output:=bags/x"),
+                name == "causal_arm_recorder",
+                "{line}"
+            );
+        }
+    }
 }

@@ -39,7 +39,7 @@ enum Command {
     /// Run an experiment in one process (no DDS) and write its dataset bag.
     Generate(generate_cmd::GenerateArgs),
     /// Start the simulator, babbler and recorder nodes over DDS and record the bag.
-    Launch(generate_cmd::GenerateArgs),
+    Launch(launch_cmd::LaunchArgs),
     /// Republish a bag on its topics (like `ros2 bag play`).
     Play(play_cmd::PlayArgs),
     /// Publish or echo any known message type as JSON (like `ros2 topic`).
@@ -65,6 +65,12 @@ fn main() -> std::process::ExitCode {
             return std::process::ExitCode::FAILURE;
         }
     };
+    // The options' defaults come from the graph file: a bad CAUSAL_ARM_GRAPH is named here,
+    // not as an empty default.
+    if let Err(err) = causal_arm_protocol::graph::graph() {
+        eprintln!("error: {err}");
+        return std::process::ExitCode::FAILURE;
+    }
     let cli = Cli::parse_from(rest);
     let result = match &cli.command {
         Command::Fk(args) => kinematics_cmd::run_fk(args),

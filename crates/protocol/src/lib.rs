@@ -3,18 +3,23 @@
 //! how that becomes ROS messages; which experiments there are, what a bag records about its
 //! run and how a run's seed is split; where the table and the cube are.
 //!
+//! The graph itself (nodes, parameters, topics) is data too: [`graph`] reads
+//! `launch_scripts/graph.toml`, which every front end shares.
+//!
 //! Libraries (dataset, trainer, explainer, truth) read bags and speak of experiments; they
 //! need these names and shapes, not the simulator or the babbler that produce them. Keeping
 //! them here, with no DDS and no physics behind them, lets every crate agree on them without
 //! building rapier3d or ros2-client.
 
 pub mod experiment;
+pub mod graph;
 pub mod messages;
 pub mod scene;
 pub mod step;
 pub mod topics;
 
 pub use experiment::{Experiment, Profile, RunPlan, babbler_seed, bag_keys, sim_seed};
+pub use graph::{GraphSpec, NodeDecl, ParamDecl, ParamDefault, graph};
 pub use messages::{
     StateFromMessagesError, StepMessages, action_message, state_from_messages, step_messages,
 };

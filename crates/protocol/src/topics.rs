@@ -25,6 +25,23 @@ pub const TF: &str = "/tf";
 pub const ROBOT_DESCRIPTION: &str = "/robot_description";
 /// `causal_arm_msgs/msg/Action` from the babbler.
 pub const ACTION: &str = "/babbler/action";
+/// `rosgraph_msgs/msg/Clock` from the recorder: the stamp of the last step it has written
+/// completely (the simulator's flow control).
+pub const RECORDER_ACK: &str = "/recorder/ack";
+
+/// Every topic of the graph.
+pub const ALL: [&str; 10] = [
+    JOINT_STATES,
+    EF_POSE,
+    OBJECT_POSE,
+    OBJECT_COLOR,
+    MAGNET_STATE,
+    CLOCK,
+    TF,
+    ROBOT_DESCRIPTION,
+    ACTION,
+    RECORDER_ACK,
+];
 
 /// Frame names used in headers and /tf.
 pub mod frames {

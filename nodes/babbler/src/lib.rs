@@ -30,7 +30,7 @@ impl Default for Exp1Config {
     fn default() -> Self {
         Self {
             mean: [0.0; ARM_DOF],
-            sigma: 0.35,
+            sigma: causal_arm_protocol::graph::run_default_f64("sigma"),
             seed: 0,
         }
     }

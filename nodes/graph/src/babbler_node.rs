@@ -10,10 +10,10 @@ use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
-use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
+use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::{action_message, ns_from_time, state_from_messages, topics};
 
-use crate::{RunParams, run_param_specs, stop_flag, take_next};
+use crate::{RunParams, node_param_specs, stop_flag, take_next};
 
 #[derive(Default)]
 struct Partial {
@@ -26,15 +26,7 @@ struct Partial {
 
 /// Runs the babbler node until it answered every step of the run or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
-    let mut specs = run_param_specs();
-    specs.push(
-        ParamSpec::new(
-            "timeout",
-            ParamValue::Double(60.0),
-            "give up waiting for the simulator after this many s",
-        )
-        .with_range(0.1, 1e6),
-    );
+    let specs = node_param_specs("causal_arm_babbler")?;
     let mut node = RosNode::new("causal_arm_babbler", &specs, ros_args)?;
     let run = RunParams::from_params(node.params(), "")?;
     validate(&run.options)?;

@@ -17,10 +17,10 @@ pub mod plan;
 pub mod recorder_node;
 pub mod sim_node;
 
-pub use plan::{RunParams, run_param_specs};
+pub use plan::{RunParams, node_param_specs};
 
 /// Acknowledgement topic of the recorder (`rosgraph_msgs/msg/Clock`: the stamp of the
 /// last step it has written completely).
-pub const ACK_TOPIC: &str = "/recorder/ack";
+pub const ACK_TOPIC: &str = causal_arm_protocol::topics::RECORDER_ACK;
 
 pub use causal_arm_node::run::{node_main, stop_flag, take_next};

@@ -3,57 +3,37 @@
 
 use causal_arm_datagen::GenerateOptions;
 use causal_arm_node::{ParamSpec, ParamValue, Params};
-use causal_arm_protocol::{Experiment, Profile, RunPlan};
+use causal_arm_protocol::graph::graph;
+use causal_arm_protocol::{Experiment, ParamDecl, ParamDefault, Profile, RunPlan};
 
-/// Parameter declarations shared by sim, babbler and recorder.
-pub fn run_param_specs() -> Vec<ParamSpec> {
-    vec![
-        ParamSpec::new(
-            "experiment",
-            ParamValue::String("exp1".into()),
-            "exp1 or exp2",
-        ),
-        ParamSpec::new(
-            "profile",
-            ParamValue::String("quick".into()),
-            "paper or quick",
-        ),
-        ParamSpec::new(
-            "steps",
-            ParamValue::Integer(0),
-            "exp1 steps (0 = profile's)",
-        )
-        .with_range(0.0, 1e12),
-        ParamSpec::new(
-            "episodes",
-            ParamValue::Integer(0),
-            "exp2 episodes (0 = profile's)",
-        )
-        .with_range(0.0, 1e9),
-        ParamSpec::new(
-            "seed",
-            ParamValue::Integer(0),
-            "seed of simulator and babbler",
-        )
-        .with_range(0.0, 9.2e18),
-        ParamSpec::new(
-            "sigma",
-            ParamValue::Double(0.35),
-            "exp1 joint target spread, rad",
-        )
-        .with_range(0.0, 10.0),
-        ParamSpec::new(
-            "velocity_scale",
-            ParamValue::Double(1.0),
-            "scale of the URDF joint velocity limits in the simulator",
-        )
-        .with_range(0.01, 1000.0),
-        ParamSpec::new(
-            "move_while_switching",
-            ParamValue::Bool(true),
-            "exp2: move while switching the magnet (false: hold the arm still at every switch)",
-        ),
-    ]
+/// The ROS parameter declarations of `node`: the run's parameters and the node's own, as
+/// `launch_scripts/graph.toml` declares them.
+pub fn node_param_specs(node: &str) -> anyhow::Result<Vec<ParamSpec>> {
+    let graph = graph()?;
+    let decl = graph
+        .node(node)
+        .ok_or_else(|| anyhow::anyhow!("the graph file declares no node {node}"))?;
+    Ok(graph
+        .run_params
+        .iter()
+        .chain(&decl.params)
+        .map(param_spec)
+        .collect())
+}
+
+/// One declaration as the node plumbing takes it.
+fn param_spec(decl: &'static ParamDecl) -> ParamSpec {
+    let default = match &decl.default {
+        ParamDefault::Bool(v) => ParamValue::Bool(*v),
+        ParamDefault::Integer(v) => ParamValue::Integer(*v),
+        ParamDefault::Double(v) => ParamValue::Double(*v),
+        ParamDefault::String(v) => ParamValue::String(v.clone()),
+    };
+    let spec = ParamSpec::new(&decl.name, default, &decl.description);
+    match decl.range {
+        Some([lo, hi]) => spec.with_range(lo, hi),
+        None => spec,
+    }
 }
 
 /// Validated run parameters.
@@ -89,6 +69,23 @@ impl RunParams {
         options.sim.velocity_scale = params.double("velocity_scale");
         options.exp2.move_while_switching = params.bool("move_while_switching");
         Ok(Self { options })
+    }
+
+    /// The run's parameters as `-p name:=value` arguments that make every node run
+    /// `options` (the inverse of [`RunParams::from_params`]).
+    pub fn ros_params(options: &GenerateOptions) -> Vec<String> {
+        vec![
+            format!("experiment:={}", options.experiment),
+            format!("seed:={}", options.seed),
+            format!("sigma:={:?}", options.exp1.sigma),
+            format!("velocity_scale:={:?}", options.sim.velocity_scale),
+            format!(
+                "move_while_switching:={}",
+                options.exp2.move_while_switching
+            ),
+            format!("steps:={}", options.plan.steps_per_episode),
+            format!("episodes:={}", options.plan.episodes),
+        ]
     }
 
     /// Sim-time duration of one step, ns (to turn stamps into step counts).

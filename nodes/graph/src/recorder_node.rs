@@ -16,10 +16,10 @@ use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
-use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
+use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::{StepMessages, ns_from_time, time_from_ns, topics};
 
-use crate::{ACK_TOPIC, RunParams, run_param_specs, stop_flag};
+use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag};
 
 #[derive(Default)]
 struct StepBuffer {
@@ -66,25 +66,7 @@ impl StepBuffer {
 
 /// Runs the recorder node until every step is written or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
-    let mut specs = run_param_specs();
-    specs.push(ParamSpec::new(
-        "output",
-        ParamValue::String(String::new()),
-        "bag directory to write",
-    ));
-    specs.push(ParamSpec::new(
-        "overwrite",
-        ParamValue::Bool(false),
-        "replace an existing bag",
-    ));
-    specs.push(
-        ParamSpec::new(
-            "timeout",
-            ParamValue::Double(60.0),
-            "give up when nothing arrives for this many s",
-        )
-        .with_range(0.1, 1e6),
-    );
+    let specs = node_param_specs("causal_arm_recorder")?;
     let mut node = RosNode::new("causal_arm_recorder", &specs, ros_args)?;
     let output = node.params().string("output").to_owned();
     if output.is_empty() {

@@ -13,12 +13,12 @@ use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
-use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode, qos};
+use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::{ARM_DOF, Command, ns_from_time, sim_seed, step_messages, topics};
 use causal_arm_sim::{SimConfig, Simulator};
 use ros2_client::Publisher;
 
-use crate::{ACK_TOPIC, RunParams, run_param_specs, stop_flag, take_next};
+use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag, take_next};
 
 fn publish<M: causal_arm_msgs::RosMessage>(
     p: &Publisher<M>,
@@ -31,28 +31,7 @@ fn publish<M: causal_arm_msgs::RosMessage>(
 
 /// Runs the simulator node until the run is complete or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
-    let mut specs = run_param_specs();
-    specs.push(
-        ParamSpec::new(
-            "ack_window",
-            ParamValue::Integer(64),
-            "max steps ahead of the recorder",
-        )
-        .with_range(1.0, 1e6),
-    );
-    specs.push(ParamSpec::new(
-        "wait_for_recorder",
-        ParamValue::Bool(true),
-        "lock-step with /recorder/ack",
-    ));
-    specs.push(
-        ParamSpec::new(
-            "timeout",
-            ParamValue::Double(60.0),
-            "give up waiting for a peer after this many s",
-        )
-        .with_range(0.1, 1e6),
-    );
+    let specs = node_param_specs("causal_arm_sim")?;
     let mut node = RosNode::new("causal_arm_sim", &specs, ros_args)?;
     let run = RunParams::from_params(node.params(), "")?;
     validate(&run.options)?;

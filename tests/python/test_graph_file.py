@@ -1,0 +1,77 @@
+"""The graph is described once (launch_scripts/graph.toml): `causal-arm launch`, `causal-arm
+generate`'s defaults and the ros2 launch files' node commands all follow it, so changing a
+default there changes every front end. No DDS is started: `launch --print-commands` only
+prints the commands it would run."""
+
+import importlib.util
+import pathlib
+import re
+import tomllib
+
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+GRAPH = REPO / "launch_scripts" / "graph.toml"
+
+
+def load_launch_module():
+    spec = importlib.util.spec_from_file_location("_graph", REPO / "launch_scripts" / "_graph.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def with_sigma(tmp_path, sigma: str) -> pathlib.Path:
+    text = GRAPH.read_text()
+    changed = re.sub(r'(name = "sigma"\ndefault = )[0-9.]+', r"\g<1>" + sigma, text)
+    assert changed != text
+    path = tmp_path / "graph.toml"
+    path.write_text(changed)
+    return path
+
+
+def sigma_of(args: list) -> str:
+    flat = ["".join(map(str, a)) if isinstance(a, list) else a for a in args]
+    found = [a.split(":=")[1] for a in flat if a.startswith("sigma:=")]
+    assert len(found) == 1, flat
+    return found[0]
+
+
+def test_every_front_end_takes_sigma_from_the_graph_file(run_cli, tmp_path, monkeypatch):
+    default = next(p["default"] for p in tomllib.loads(GRAPH.read_text())["run_params"]
+                   if p["name"] == "sigma")
+    for graph, sigma in [(None, str(default)), (with_sigma(tmp_path, "0.123"), "0.123")]:
+        env = {"CAUSAL_ARM_GRAPH": str(graph)} if graph else {}
+        if graph:
+            monkeypatch.setenv("CAUSAL_ARM_GRAPH", str(graph))
+        else:
+            monkeypatch.delenv("CAUSAL_ARM_GRAPH", raising=False)
+        # causal-arm launch: every node gets the file's sigma.
+        out = run_cli("launch", "exp1", "--out", tmp_path / "bag", "--print-commands", env=env)
+        assert out.returncode == 0, out.stderr
+        lines = out.stdout.strip().splitlines()
+        names = [line.split()[0] for line in lines]
+        assert names == ["causal_arm_recorder", "causal_arm_babbler", "causal_arm_sim"]
+        assert all(sigma_of(line.split()[1:]) == sigma for line in lines), lines
+        # causal-arm generate: the file's sigma is the option's default.
+        help_text = run_cli("generate", "--help", env=env).stdout
+        assert re.search(r"--sigma <SIGMA>[^\[]*\[default: " + re.escape(sigma) + r"\]", help_text)
+        # ros2 launch files: the same nodes, with the file's sigma as the argument default.
+        launch = load_launch_module()
+        spec = launch.load_graph()
+        args = launch.launch_arguments(spec, "bags/x")
+        assert args["sigma"] == sigma
+        commands = launch.node_commands("exp1", args, spec)
+        assert [name for name, _ in commands] == names
+        assert all(sigma_of(cmd) == sigma for _, cmd in commands)
+        recorder = dict(commands)["causal_arm_recorder"]
+        assert ["output", ":=", "bags/x"] in recorder
+
+
+def test_a_bad_graph_file_is_named(run_cli, tmp_path):
+    bad = tmp_path / "graph.toml"
+    bad.write_text(GRAPH.read_text().replace('default = 0.35', 'default = 20.0'))
+    out = run_cli("generate", "--help", env={"CAUSAL_ARM_GRAPH": str(bad)})
+    assert out.returncode != 0
+    assert f"graph file {bad}" in out.stderr
+    assert "parameter sigma: default 20 outside its range [0, 10]" in out.stderr

@@ -11,9 +11,11 @@ use causal_arm_explainer::influence::{
     holdout_effects,
 };
 use causal_arm_explainer::multistep;
-use causal_arm_explainer::output::write_all;
+use causal_arm_explainer::output::{Written, write_all};
 use causal_arm_explainer::report::DEFAULT_THRESHOLD;
-use causal_arm_explainer::{BackgroundKind, Explainer, Method, Settings, calibrated_relevance};
+use causal_arm_explainer::{
+    BackgroundKind, Explainer, Explanation, Method, Relevance, Settings, calibrated_relevance,
+};
 use causal_arm_scoring::EdgeClaims;
 use causal_arm_trainer::load_model;
 use causal_arm_truth::{Truth, check_names, score_claims, score_table};
@@ -199,7 +201,20 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
     let written = write_all(&out, &explanation, &report, !args.no_pair_plots)
         .with_context(|| format!("cannot write the explanation into {}", out.display()))?;
     finish_claims(args, &out, &claims, truth.as_ref())?;
+    print_relevance(args, &settings, &explanation, &report);
+    draw_mental_simulation_if_run(args, &out, &explanation)?;
+    list_written(&written, &out);
+    Ok(())
+}
 
+/// The run in one line, then every state feature's verdict and what drives it: the
+/// knowledge extracted, on stdout.
+fn print_relevance(
+    args: &ExplainArgs,
+    settings: &Settings,
+    explanation: &Explanation,
+    report: &Relevance,
+) {
     println!(
         "{} {} SHAP of {}/{}: {} observations × {} background rows in {:.2} s (efficiency error {:.1e})",
         explanation.experiment,
@@ -237,7 +252,15 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
             report.unaffected.join(", ")
         );
     }
-    // The mental-simulation figure, if `causal-arm rollout` was run on this model.
+}
+
+/// The mental-simulation figure, if `causal-arm rollout` was run on this model, so the
+/// explanation directory holds every figure of the paper for it.
+fn draw_mental_simulation_if_run(
+    args: &ExplainArgs,
+    out: &Path,
+    explanation: &Explanation,
+) -> anyhow::Result<()> {
     let mental = args.model.join("mental_simulation.json");
     if let Ok(text) = std::fs::read_to_string(&mental) {
         let result: causal_arm_trainer::mental::MentalSimulation = serde_json::from_str(&text)
@@ -250,6 +273,12 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
         )?;
         eprintln!("wrote {}.png and {}.svg", stem.display(), stem.display());
     }
+    Ok(())
+}
+
+/// The files written, the per-pair PDPs counted rather than listed (there are
+/// actions × states of them).
+fn list_written(written: &Written, out: &Path) {
     let pairs = written
         .files
         .iter()
@@ -268,7 +297,6 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
             out.join("pdp").display()
         );
     }
-    Ok(())
 }
 
 /// The claims of a SHAP run, the default (`<method>+cai`) first: one piece of code with the

@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
-use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Experiment, load_bags};
+use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Dataset, Experiment, load_bags};
 use causal_arm_trainer::fit::{Progress, ProgressLog};
-use causal_arm_trainer::job::train_and_save;
+use causal_arm_trainer::job::{SavedRun, train_and_save};
 use causal_arm_trainer::problems::FmTarget;
 use causal_arm_trainer::structure::{Auxiliary, FoundGraph};
 use causal_arm_trainer::{Figure, LrSchedule, ModelKind, Profile, TrainOptions};
@@ -154,6 +154,59 @@ pub fn print_table(figures: &[Figure]) {
 
 /// Runs `causal-arm train`.
 pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
+    let CheckedArgs {
+        mut options,
+        action,
+        expected,
+        requested,
+    } = checked_options(args)?;
+    let start = Instant::now();
+    let data = load_dataset(args, expected, action, start)?;
+    if let Some(path) = &args.graph {
+        let graph = FoundGraph::load(path, data.experiment)?;
+        eprintln!(
+            "graph: {}; left out as driven by no action: {:?}",
+            graph.source,
+            graph.unaffected()
+        );
+        options.graph = Some(graph);
+    } else if requested == Some(ModelKind::FmFactored) {
+        bail!(
+            "--model fm-factored needs --graph CLAIMS_JSON (the claims.json of `causal-arm explain`)"
+        );
+    }
+    let kinds = match requested {
+        Some(kind) => vec![kind],
+        None => ModelKind::all_for(data.experiment),
+    };
+
+    let mut progress = TrainingProgress::new();
+    let saved = train_and_save(&data, &kinds, &options, action, &args.out, &mut |p| {
+        progress.show(p)
+    })?;
+    progress.finish();
+    print_results(&data, &options, &saved);
+    eprintln!(
+        "wrote {} ({:.1} s in all)",
+        saved.metrics.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The command line parsed and checked, so a typo is refused before the bags are read.
+struct CheckedArgs {
+    options: TrainOptions,
+    action: ActionSource,
+    /// The experiment the bags must hold, if given.
+    expected: Option<Experiment>,
+    /// One model kind, or `None` for every model of the experiment.
+    requested: Option<ModelKind>,
+}
+
+/// Parses and checks every option of `args` (all but the graph, which needs the data's
+/// experiment) into the trainer's options.
+fn checked_options(args: &TrainArgs) -> anyhow::Result<CheckedArgs> {
     let profile: Profile = args.profile.parse().map_err(anyhow::Error::msg)?;
     let action: ActionSource = args.action.parse().map_err(anyhow::Error::msg)?;
     let fm_target: FmTarget = args.fm_target.parse().map_err(anyhow::Error::msg)?;
@@ -180,7 +233,7 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
     {
         bail!("hidden layer widths must be positive, e.g. --fm-hidden 256,256,256");
     }
-    let mut options = TrainOptions {
+    let options = TrainOptions {
         profile,
         epochs: args.epochs,
         folds: args.folds,
@@ -198,8 +251,22 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         factored_hidden: args.factored_hidden.clone(),
         factored_auxiliary: args.factored_auxiliary,
     };
+    Ok(CheckedArgs {
+        options,
+        action,
+        expected,
+        requested,
+    })
+}
 
-    let start = Instant::now();
+/// The bags' transitions (through the cache unless `--no-cache`), saying where each bag
+/// came from and what the data holds, since decoding can take minutes.
+fn load_dataset(
+    args: &TrainArgs,
+    expected: Option<Experiment>,
+    action: ActionSource,
+    start: Instant,
+) -> anyhow::Result<Dataset> {
     let cache =
         (!args.no_cache).then(|| Cache::new(args.cache.clone().unwrap_or_else(Cache::default_dir)));
     let (data, outcomes) = load_bags(&args.bags, expected, action, cache.as_ref())?;
@@ -218,30 +285,30 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         data.action_width(),
         start.elapsed().as_secs_f64()
     );
-    if let Some(path) = &args.graph {
-        let graph = FoundGraph::load(path, data.experiment)?;
-        eprintln!(
-            "graph: {}; left out as driven by no action: {:?}",
-            graph.source,
-            graph.unaffected()
-        );
-        options.graph = Some(graph);
-    } else if requested == Some(ModelKind::FmFactored) {
-        bail!(
-            "--model fm-factored needs --graph CLAIMS_JSON (the claims.json of `causal-arm explain`)"
-        );
-    }
-    let kinds = match requested {
-        Some(kind) => vec![kind],
-        None => ModelKind::all_for(data.experiment),
-    };
+    Ok(data)
+}
 
-    let mut bar: Option<ProgressBar> = None;
-    let mut epochs_planned = 0;
-    // A bar cannot draw into a pipe or a log file: print plain lines there instead.
-    let mut plain_log = (!std::io::stderr().is_terminal()).then(|| ProgressLog::new(PLAIN_EVERY));
-    let mut on_progress = |p: Progress| {
-        if let Some(log) = &mut plain_log {
+/// Training progress on stderr: a bar per network on a terminal, plain lines at most
+/// [`PLAIN_EVERY`] apart elsewhere (a bar cannot draw into a pipe or a log file).
+struct TrainingProgress {
+    bar: Option<ProgressBar>,
+    epochs_planned: usize,
+    plain_log: Option<ProgressLog>,
+}
+
+impl TrainingProgress {
+    /// Bars or plain lines, chosen by whether stderr is a terminal.
+    fn new() -> Self {
+        Self {
+            bar: None,
+            epochs_planned: 0,
+            plain_log: (!std::io::stderr().is_terminal()).then(|| ProgressLog::new(PLAIN_EVERY)),
+        }
+    }
+
+    /// Shows one progress event of the trainer.
+    fn show(&mut self, p: Progress) {
+        if let Some(log) = &mut self.plain_log {
             if let Some(line) = log.line(&p) {
                 eprintln!("{line}");
             }
@@ -253,28 +320,39 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
                 epochs,
                 rows,
             } => {
-                if let Some(b) = bar.take() {
+                if let Some(b) = self.bar.take() {
                     b.finish_and_clear();
                 }
-                epochs_planned = epochs;
-                bar = Some(bar_for(&label, epochs, rows));
+                self.epochs_planned = epochs;
+                self.bar = Some(bar_for(&label, epochs, rows));
             }
             Progress::Rows(n) => {
-                if let Some(b) = &bar {
+                if let Some(b) = &self.bar {
                     b.inc(n as u64);
                 }
             }
             Progress::Epoch { epoch, loss } => {
-                if let Some(b) = &bar {
-                    b.set_message(format!("epoch {epoch}/{epochs_planned} loss {loss:.4}"));
+                if let Some(b) = &self.bar {
+                    b.set_message(format!(
+                        "epoch {epoch}/{} loss {loss:.4}",
+                        self.epochs_planned
+                    ));
                 }
             }
         }
-    };
-    let saved = train_and_save(&data, &kinds, &options, action, &args.out, &mut on_progress)?;
-    if let Some(b) = bar.take() {
-        b.finish_and_clear();
     }
+
+    /// Clears the last bar so the results print on a clean line.
+    fn finish(&mut self) {
+        if let Some(b) = self.bar.take() {
+            b.finish_and_clear();
+        }
+    }
+}
+
+/// What was written and how long each network took (stderr), then the figures next to
+/// the paper's (stdout, the result a script keeps).
+fn print_results(data: &Dataset, options: &TrainOptions, saved: &SavedRun) {
     for pair in saved.written.chunks(2) {
         let names: Vec<_> = pair.iter().map(|p| p.display().to_string()).collect();
         eprintln!("wrote {}", names.join(" and "));
@@ -301,12 +379,6 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         options.folds
     );
     print_table(&saved.figures);
-    eprintln!(
-        "wrote {} ({:.1} s in all)",
-        saved.metrics.display(),
-        start.elapsed().as_secs_f64()
-    );
-    Ok(())
 }
 
 /// `--factored-auxiliary`'s parser: `--help` lists the policies.

@@ -3,7 +3,7 @@
 //! `cargo run --release -p causal_arm_plots --example shap_figures_demo [out_dir]`
 //! (default `/tmp/plots_demo`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use causal_arm_plots::{HeatmapScale, Scatter, heatmap, scatter, scatter_grid};
 
@@ -27,7 +27,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     std::fs::create_dir_all(&dir)?;
     let mut rng = Lcg(42);
+    let (rows, cols) = action_and_state_names();
+    let values = mean_abs_shap(&mut rng, &rows, &cols);
+    draw_heatmaps(&dir, &rows, &cols, &values)?;
+    let panels = dependence_panels(&mut rng, &cols);
+    scatter_grid(
+        &dir.join("pdp_grid"),
+        "Partial dependence: SHAP contribution vs action value",
+        &panels,
+        4,
+    )?;
+    scatter(&dir.join("pdp_single"), &panels[0])?;
+    println!("wrote figures to {}", dir.display());
+    Ok(())
+}
 
+/// Exp2's 8 actions (rows) and 23 state outputs (columns), so the demo has the real
+/// figure's shape and label lengths.
+fn action_and_state_names() -> (Vec<String>, Vec<String>) {
     let rows: Vec<String> = (0..7)
         .map(|i| format!("a{i}"))
         .chain(["a_mgt".to_string()])
@@ -42,8 +59,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(String::from),
         )
         .collect();
+    (rows, cols)
+}
+
+/// Values spread over six decades with one exact 0, as real mean |SHAP| values are, so
+/// the log scale's floor and ticks get exercised.
+fn mean_abs_shap(rng: &mut Lcg, rows: &[String], cols: &[String]) -> Vec<f64> {
     // Each action mostly drives its own joint angle; everything else is 1e-6 … 1e-2.
-    let values: Vec<f64> = (0..rows.len() * cols.len())
+    (0..rows.len() * cols.len())
         .map(|k| {
             let (r, c) = (k / cols.len(), k % cols.len());
             if r == c {
@@ -54,22 +77,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 10f64.powf(-6.0 + 4.0 * rng.next())
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The heat map on both scales and with labels too long for a cell, the three layouts
+/// worth checking by eye.
+fn draw_heatmaps(
+    dir: &Path,
+    rows: &[String],
+    cols: &[String],
+    values: &[f64],
+) -> Result<(), Box<dyn std::error::Error>> {
     heatmap(
         &dir.join("heatmap_log"),
         "Mean |SHAP| of each action on each state output",
-        &rows,
-        &cols,
-        &values,
+        rows,
+        cols,
+        values,
         "mean |SHAP|",
         HeatmapScale::Log,
     )?;
     heatmap(
         &dir.join("heatmap_linear"),
         "Mean |SHAP| (linear scale)",
-        &rows,
-        &cols,
-        &values,
+        rows,
+        cols,
+        values,
         "mean |SHAP|",
         HeatmapScale::Linear,
     )?;
@@ -79,14 +112,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     heatmap(
         &dir.join("heatmap_long_labels"),
         "Long column labels",
-        &rows,
+        rows,
         &long_cols,
-        &values,
+        values,
         "mean |SHAP|",
         HeatmapScale::Log,
     )?;
+    Ok(())
+}
 
-    let panels: Vec<Scatter> = (0..12)
+/// Twelve partial dependence panels of different magnitudes, including the degenerate
+/// ones (an action that is always 0, a contribution that is exactly 0) the axes must
+/// survive.
+fn dependence_panels(rng: &mut Lcg, cols: &[String]) -> Vec<Scatter> {
+    (0..12)
         .map(|i| {
             let action = format!("a{}", i % 7);
             let output = &cols[(i * 5) % cols.len()];
@@ -113,14 +152,5 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 points,
             }
         })
-        .collect();
-    scatter_grid(
-        &dir.join("pdp_grid"),
-        "Partial dependence: SHAP contribution vs action value",
-        &panels,
-        4,
-    )?;
-    scatter(&dir.join("pdp_single"), &panels[0])?;
-    println!("wrote figures to {}", dir.display());
-    Ok(())
+        .collect()
 }

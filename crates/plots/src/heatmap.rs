@@ -251,41 +251,58 @@ impl<'a> HeatmapFigure<'a> {
         }
     }
 
+    /// Draws the whole figure; the layout is measured first because the cell area is
+    /// what the labels and the colour bar leave free.
     fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), String>
     where
         DB::ErrorType: 'static,
     {
         root.fill(&WHITE).map_err(err_string)?;
-        let (width, height) = root.dim_in_pixel();
-        let (width, height) = (width as i32, height as i32);
-        let text = |size: u32| TextStyle::from((FONT, size).into_font());
-        let text_width = |s: &str, style: &TextStyle| {
-            root.estimate_text_size(s, style)
-                .map(|(w, _)| w as i32)
-                .map_err(err_string)
-        };
+        let (width, _) = root.dim_in_pixel();
 
         // Title.
         root.draw(&Text::new(
             self.title.to_string(),
-            (width / 2, 15),
+            (width as i32 / 2, 15),
             TextStyle::from((FONT, HM_TITLE).into_font().style(FontStyle::Bold))
                 .pos(Pos::new(HPos::Center, VPos::Top)),
         ))
         .map_err(err_string)?;
 
+        let layout = self.layout(&root)?;
+        self.draw_cells(&root, &layout)?;
+        self.draw_labels(&root, &layout)?;
+        self.draw_colour_bar(&root, &layout)?;
+        root.present().map_err(err_string)
+    }
+
+    /// Measures the labels and places the cells and the colour bar: the cells take what
+    /// the row labels (left), the colour bar with its ticks (right) and the column labels
+    /// (below, vertical when too wide for a cell) leave.
+    fn layout<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<HeatmapLayout, String>
+    where
+        DB::ErrorType: 'static,
+    {
+        let (width, height) = root.dim_in_pixel();
+        let (width, height) = (width as i32, height as i32);
+        let widest = |labels: &mut dyn Iterator<Item = &String>, style: &TextStyle| {
+            let mut widest = 0;
+            for s in labels {
+                let (w, _) = root.estimate_text_size(s, style).map_err(err_string)?;
+                widest = widest.max(w as i32);
+            }
+            Ok::<i32, String>(widest)
+        };
+
         // Layout: [margin | row labels | cells | colour bar + ticks + label | margin].
         let row_style = text(HM_ROW_FONT).pos(Pos::new(HPos::Right, VPos::Center));
-        let mut row_w = 0;
-        for r in self.rows {
-            row_w = row_w.max(text_width(r, &row_style)?);
-        }
+        let row_w = widest(&mut self.rows.iter(), &row_style)?;
         let tick_style = text(HM_TICK_FONT).pos(Pos::new(HPos::Left, VPos::Center));
         let ticks = self.ticks();
-        let mut tick_w = 0;
-        for (_, t) in &ticks {
-            tick_w = tick_w.max(text_width(t, &tick_style)?);
-        }
+        let tick_w = widest(&mut ticks.iter().map(|(_, t)| t), &tick_style)?;
         let (bar_gap, bar_w) = (28, 22);
         let right = bar_gap + bar_w + 6 + tick_w + 16 + 22 + 15;
         let left = 15 + row_w + 10;
@@ -297,18 +314,46 @@ impl<'a> HeatmapFigure<'a> {
         let cell_w = (x1 - x0) as f64 / ncols as f64;
 
         let col_style = text(HM_COL_FONT);
-        let mut col_w = 0;
-        for c in self.cols {
-            col_w = col_w.max(text_width(c, &col_style)?);
-        }
+        let col_w = widest(&mut self.cols.iter(), &col_style)?;
         let vertical = col_w as f64 > cell_w - 6.0;
         let label_h = if vertical { col_w } else { HM_COL_FONT as i32 };
         let y1 = (height - 20 - label_h - 8).max(top + nrows);
         let cell_h = (y1 - top) as f64 / nrows as f64;
-        let cx = |c: f64| x0 + (c * cell_w).round() as i32;
-        let cy = |r: f64| top + (r * cell_h).round() as i32;
+        let col_style = if vertical {
+            // Reads bottom to top, ending just below the cells.
+            col_style
+                .transform(FontTransform::Rotate270)
+                .pos(Pos::new(HPos::Right, VPos::Center))
+        } else {
+            col_style.pos(Pos::new(HPos::Center, VPos::Top))
+        };
+        Ok(HeatmapLayout {
+            x0,
+            x1,
+            top,
+            y1,
+            cell_w,
+            cell_h,
+            row_style,
+            col_style,
+            tick_style,
+            ticks,
+            tick_w,
+            bar_gap,
+            bar_w,
+        })
+    }
 
-        // Cells, separated by thin white lines.
+    /// The cells, separated by thin white lines, framed in black.
+    fn draw_cells<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        layout: &HeatmapLayout,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        let (cx, cy) = (|c| layout.cx(c), |r| layout.cy(r));
         for (k, v) in self.values.iter().enumerate() {
             let (r, c) = ((k / self.cols.len()) as f64, (k % self.cols.len()) as f64);
             let color = viridis(self.fraction(*v));
@@ -324,40 +369,53 @@ impl<'a> HeatmapFigure<'a> {
             .map_err(err_string)?;
         }
         root.draw(&Rectangle::new(
-            [(x0, top), (x1, y1)],
+            [(layout.x0, layout.top), (layout.x1, layout.y1)],
             BLACK.stroke_width(1),
         ))
-        .map_err(err_string)?;
+        .map_err(err_string)
+    }
 
-        // Row labels left of the cells, column labels below them.
+    /// Row labels left of the cells, column labels below them.
+    fn draw_labels<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        layout: &HeatmapLayout,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
         for (r, label) in self.rows.iter().enumerate() {
             root.draw(&Text::new(
                 label.clone(),
-                (x0 - 8, cy(r as f64 + 0.5)),
-                row_style.clone(),
+                (layout.x0 - 8, layout.cy(r as f64 + 0.5)),
+                layout.row_style.clone(),
             ))
             .map_err(err_string)?;
         }
-        let col_style = if vertical {
-            // Reads bottom to top, ending just below the cells.
-            col_style
-                .transform(FontTransform::Rotate270)
-                .pos(Pos::new(HPos::Right, VPos::Center))
-        } else {
-            col_style.pos(Pos::new(HPos::Center, VPos::Top))
-        };
         for (c, label) in self.cols.iter().enumerate() {
             root.draw(&Text::new(
                 label.clone(),
-                (cx(c as f64 + 0.5), y1 + 7),
-                col_style.clone(),
+                (layout.cx(c as f64 + 0.5), layout.y1 + 7),
+                layout.col_style.clone(),
             ))
             .map_err(err_string)?;
         }
+        Ok(())
+    }
 
-        // Colour bar: one-pixel bands from the lowest (bottom) to the highest (top) colour.
-        let bx0 = x1 + bar_gap;
-        let bx1 = bx0 + bar_w;
+    /// Colour bar: one-pixel bands from the lowest (bottom) to the highest (top) colour,
+    /// its ticks and its label.
+    fn draw_colour_bar<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        layout: &HeatmapLayout,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        let (top, y1) = (layout.top, layout.y1);
+        let bx0 = layout.x1 + layout.bar_gap;
+        let bx1 = bx0 + layout.bar_w;
         let bar_h = (y1 - top).max(1);
         for i in 0..bar_h {
             let t = (i as f64 + 0.5) / bar_h as f64;
@@ -372,21 +430,64 @@ impl<'a> HeatmapFigure<'a> {
             BLACK.stroke_width(1),
         ))
         .map_err(err_string)?;
-        for (t, label) in &ticks {
+        for (t, label) in &layout.ticks {
             let y = y1 - (t * bar_h as f64).round() as i32;
             root.draw(&PathElement::new(vec![(bx1, y), (bx1 + 5, y)], BLACK))
                 .map_err(err_string)?;
-            root.draw(&Text::new(label.clone(), (bx1 + 8, y), tick_style.clone()))
-                .map_err(err_string)?;
+            root.draw(&Text::new(
+                label.clone(),
+                (bx1 + 8, y),
+                layout.tick_style.clone(),
+            ))
+            .map_err(err_string)?;
         }
         root.draw(&Text::new(
             self.colorbar_label.to_string(),
-            (bx1 + 8 + tick_w + 16, (top + y1) / 2),
+            (bx1 + 8 + layout.tick_w + 16, (top + y1) / 2),
             text(HM_ROW_FONT)
                 .transform(FontTransform::Rotate270)
                 .pos(Pos::new(HPos::Center, VPos::Top)),
         ))
-        .map_err(err_string)?;
-        root.present().map_err(err_string)
+        .map_err(err_string)
+    }
+}
+
+/// The text style of a heat map at `size` pixels; one place for the figure's font.
+fn text(size: u32) -> TextStyle<'static> {
+    TextStyle::from((FONT, size).into_font())
+}
+
+/// Where the parts of a heat map go (pixels) and the styles measured for them, computed
+/// once so cells, labels and colour bar line up.
+struct HeatmapLayout {
+    /// Left and right edge of the cells.
+    x0: i32,
+    x1: i32,
+    /// Top and bottom edge of the cells (and of the colour bar).
+    top: i32,
+    y1: i32,
+    cell_w: f64,
+    cell_h: f64,
+    row_style: TextStyle<'static>,
+    col_style: TextStyle<'static>,
+    tick_style: TextStyle<'static>,
+    /// Colour bar ticks as (fraction along the bar, label).
+    ticks: Vec<(f64, String)>,
+    /// Widest tick label, which places the colour bar's label.
+    tick_w: i32,
+    /// Gap between the cells and the colour bar, and the bar's width.
+    bar_gap: i32,
+    bar_w: i32,
+}
+
+impl HeatmapLayout {
+    /// x of the left edge of column `c` (fractional for centres).
+    fn cx(&self, c: f64) -> i32 {
+        self.x0 + (c * self.cell_w).round() as i32
+    }
+
+    /// y of the top edge of row `r` (fractional for centres).
+    fn cy(&self, r: f64) -> i32 {
+        self.top + (r * self.cell_h).round() as i32
     }
 }

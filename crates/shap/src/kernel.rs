@@ -2,7 +2,8 @@
 //! efficiency imposed exactly, the model evaluated on all (coalition × background) rows in
 //! large parallel batches.
 
-use std::collections::HashMap;
+mod background;
+mod coalitions;
 
 use causal_arm_mlp::Regressor;
 use rand::{Rng, SeedableRng, rngs::StdRng};
@@ -11,6 +12,8 @@ use rayon::prelude::*;
 use crate::deep::check_offset;
 use crate::linalg::solve_symmetric;
 use crate::{Attributions, Result, ShapError, check_rows, pool};
+pub use background::{Background, kmeans};
+use coalitions::{Coalitions, composite_rows, exact_coalitions, sampled_coalitions};
 
 /// A model evaluated on many rows at once; what Kernel SHAP explains. `Sync` because
 /// batches are evaluated on several threads at once.
@@ -51,13 +54,7 @@ impl<F: Fn(&[f32], usize) -> Vec<f32> + Sync> BatchModel for FnModel<F> {
     }
     fn predict(&self, rows: &[f32], n_rows: usize) -> Result<Vec<f32>> {
         let out = (self.f)(rows, n_rows);
-        if out.len() != n_rows * self.n_outputs {
-            return Err(ShapError::Shape(format!(
-                "model returned {} values for {n_rows} rows × {} outputs",
-                out.len(),
-                self.n_outputs
-            )));
-        }
+        check_output_len(out.len(), n_rows, self.n_outputs)?;
         Ok(out)
     }
 }
@@ -104,212 +101,6 @@ impl BatchModel for RegressorModel<'_> {
     }
 }
 
-/// Weighted background rows that stand in for "feature unknown" (replaced features take
-/// their values from these rows, weighted).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Background {
-    data: Vec<f32>,
-    weights: Vec<f64>,
-    width: usize,
-}
-
-impl Background {
-    /// Rows with equal weights (a plain sample of the data).
-    pub fn sample(data: &[f32], width: usize) -> Result<Self> {
-        let rows = check_rows("background", data, width)?;
-        Self::weighted(data, width, vec![1.0; rows])
-    }
-
-    /// Rows with the given non-negative weights (normalised to sum 1).
-    pub fn weighted(data: &[f32], width: usize, weights: Vec<f64>) -> Result<Self> {
-        let rows = check_rows("background", data, width)?;
-        if weights.len() != rows {
-            return Err(ShapError::Shape(format!(
-                "{} weights for {rows} background rows",
-                weights.len()
-            )));
-        }
-        if weights.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
-            return Err(ShapError::NonFinite(
-                "background weights must be finite and non-negative".into(),
-            ));
-        }
-        let total: f64 = weights.iter().sum();
-        if total <= 0.0 {
-            return Err(ShapError::Empty("background weights sum to 0".into()));
-        }
-        Ok(Self {
-            data: data.to_vec(),
-            weights: weights.iter().map(|w| w / total).collect(),
-            width,
-        })
-    }
-
-    /// Number of rows.
-    pub fn rows(&self) -> usize {
-        self.weights.len()
-    }
-
-    /// Row width (model inputs).
-    pub fn width(&self) -> usize {
-        self.width
-    }
-
-    /// Row-major rows `[rows, width]`.
-    pub fn data(&self) -> &[f32] {
-        &self.data
-    }
-
-    /// Weights, summing to 1.
-    pub fn weights(&self) -> &[f64] {
-        &self.weights
-    }
-}
-
-/// Summarises `data` (`[rows, width]`) by `k` weighted k-means centres, as `shap.kmeans`:
-/// k-means++ seeding (best of 3 runs of Lloyd's algorithm, seeded), then every centre
-/// coordinate is snapped to the nearest value that column takes in the data (so
-/// categorical or discrete features stay valid) and weighted by its cluster's size.
-/// With `k ≥ rows` the data itself is returned with equal weights. Each iteration costs
-/// `rows · k · width` (the assignment runs on rayon's global pool): subsample very large
-/// data sets first.
-pub fn kmeans(data: &[f32], width: usize, k: usize, seed: u64) -> Result<Background> {
-    let n = check_rows("k-means data", data, width)?;
-    if k == 0 {
-        return Err(ShapError::Option("k-means needs k ≥ 1".into()));
-    }
-    if k >= n {
-        return Background::sample(data, width);
-    }
-    let mut rng = StdRng::seed_from_u64(seed);
-    let row = |i: usize| &data[i * width..(i + 1) * width];
-    let dist = |a: &[f32], b: &[f64]| -> f64 {
-        a.iter()
-            .zip(b)
-            .map(|(&x, &c)| (f64::from(x) - c).powi(2))
-            .sum()
-    };
-    let mut best: Option<(f64, Vec<f64>, Vec<usize>)> = None;
-    for _ in 0..3 {
-        // k-means++ seeding.
-        let mut centres: Vec<f64> = Vec::with_capacity(k * width);
-        let first = rng.random_range(0..n);
-        centres.extend(row(first).iter().map(|&v| f64::from(v)));
-        let mut d2: Vec<f64> = (0..n).map(|i| dist(row(i), &centres[..width])).collect();
-        for c in 1..k {
-            let total: f64 = d2.iter().sum();
-            let pick = if total > 0.0 {
-                let target = rng.random::<f64>() * total;
-                let mut acc = 0.0;
-                d2.iter()
-                    .position(|&d| {
-                        acc += d;
-                        acc > target
-                    })
-                    .unwrap_or(n - 1)
-            } else {
-                rng.random_range(0..n)
-            };
-            centres.extend(row(pick).iter().map(|&v| f64::from(v)));
-            let centre = &centres[c * width..(c + 1) * width];
-            for (i, d) in d2.iter_mut().enumerate() {
-                *d = d.min(dist(row(i), centre));
-            }
-        }
-        // Lloyd iterations.
-        let mut labels = vec![usize::MAX; n];
-        let mut inertia = 0.0;
-        for _ in 0..300 {
-            let mut changed = false;
-            inertia = 0.0;
-            // Nearest centre of every row, in parallel (per-row results, so the sums
-            // below do not depend on the thread split).
-            let nearest: Vec<(usize, f64)> = (0..n)
-                .into_par_iter()
-                .map(|i| {
-                    let (mut bi, mut bd) = (0, f64::INFINITY);
-                    for c in 0..k {
-                        let d = dist(row(i), &centres[c * width..(c + 1) * width]);
-                        if d < bd {
-                            (bi, bd) = (c, d);
-                        }
-                    }
-                    (bi, bd)
-                })
-                .collect();
-            for (label, &(bi, bd)) in labels.iter_mut().zip(&nearest) {
-                inertia += bd;
-                if *label != bi {
-                    *label = bi;
-                    changed = true;
-                }
-            }
-            if !changed {
-                break;
-            }
-            let mut sum = vec![0f64; k * width];
-            let mut count = vec![0usize; k];
-            for (i, &l) in labels.iter().enumerate() {
-                count[l] += 1;
-                for (s, &v) in sum[l * width..(l + 1) * width].iter_mut().zip(row(i)) {
-                    *s += f64::from(v);
-                }
-            }
-            for c in 0..k {
-                if count[c] == 0 {
-                    // An empty cluster takes the point farthest from its centre.
-                    let far = (0..n)
-                        .max_by(|&a, &b| {
-                            let da = dist(row(a), &centres[labels[a] * width..][..width]);
-                            let db = dist(row(b), &centres[labels[b] * width..][..width]);
-                            da.total_cmp(&db)
-                        })
-                        .unwrap_or(0);
-                    for (dst, &v) in centres[c * width..(c + 1) * width].iter_mut().zip(row(far)) {
-                        *dst = f64::from(v);
-                    }
-                } else {
-                    for (dst, s) in centres[c * width..(c + 1) * width]
-                        .iter_mut()
-                        .zip(&sum[c * width..(c + 1) * width])
-                    {
-                        *dst = s / count[c] as f64;
-                    }
-                }
-            }
-        }
-        if best.as_ref().is_none_or(|b| inertia < b.0) {
-            best = Some((inertia, centres, labels));
-        }
-    }
-    let (_, centres, labels) = best.expect("three runs were made");
-    let mut weights = vec![0f64; k];
-    labels.iter().for_each(|&l| weights[l] += 1.0);
-    // Snap each coordinate to the nearest value of its column (first such row, as
-    // numpy's argmin), and drop clusters that ended empty.
-    let mut out = Vec::with_capacity(k * width);
-    let mut out_w = Vec::with_capacity(k);
-    for c in 0..k {
-        if weights[c] == 0.0 {
-            continue;
-        }
-        for j in 0..width {
-            let target = centres[c * width + j];
-            let mut best = (f64::INFINITY, 0f32);
-            for i in 0..n {
-                let v = data[i * width + j];
-                let d = (f64::from(v) - target).abs();
-                if d < best.0 {
-                    best = (d, v);
-                }
-            }
-            out.push(best.1);
-        }
-        out_w.push(weights[c]);
-    }
-    Background::weighted(&out, width, out_w)
-}
-
 /// Observation `o` samples coalitions from the stream `seed + o · OBSERVATION_SEED_STRIDE`,
 /// so a caller explaining rows `start..` in a separate call passes
 /// `seed + start · OBSERVATION_SEED_STRIDE` and gets the same values as one call.
@@ -345,242 +136,6 @@ impl Default for KernelOptions {
     }
 }
 
-/// Coalitions over the `m` varying features and their regression weights.
-struct Coalitions {
-    m: usize,
-    /// Row-major `[count, m]` 0/1.
-    masks: Vec<u8>,
-    weights: Vec<f64>,
-}
-
-impl Coalitions {
-    fn count(&self) -> usize {
-        self.weights.len()
-    }
-    fn mask(&self, k: usize) -> &[u8] {
-        &self.masks[k * self.m..(k + 1) * self.m]
-    }
-    fn push(&mut self, mask: &[u8], w: f64) -> usize {
-        self.masks.extend_from_slice(mask);
-        self.weights.push(w);
-        self.weights.len() - 1
-    }
-}
-
-fn binomial(n: usize, k: usize) -> f64 {
-    let k = k.min(n - k);
-    (0..k).fold(1.0, |acc, i| acc * (n - i) as f64 / (i + 1) as f64)
-}
-
-/// Calls `f` on every size-`s` subset of `0..m` as a 0/1 mask (lexicographic order).
-fn for_each_combination(m: usize, s: usize, mut f: impl FnMut(&[u8])) {
-    let mut idx: Vec<usize> = (0..s).collect();
-    let mut mask = vec![0u8; m];
-    loop {
-        mask.fill(0);
-        idx.iter().for_each(|&i| mask[i] = 1);
-        f(&mask);
-        // Advance to the next combination.
-        let mut i = s;
-        loop {
-            if i == 0 {
-                return;
-            }
-            i -= 1;
-            if idx[i] < m - s + i {
-                idx[i] += 1;
-                for t in i + 1..s {
-                    idx[t] = idx[t - 1] + 1;
-                }
-                break;
-            }
-            if i == 0 {
-                return;
-            }
-        }
-    }
-}
-
-/// All `2^m − 2` proper non-empty coalitions with the exact Shapley kernel weights
-/// `(m − 1) / (C(m, s) · s · (m − s))`.
-fn exact_coalitions(m: usize) -> Coalitions {
-    let mut c = Coalitions {
-        m,
-        masks: Vec::new(),
-        weights: Vec::new(),
-    };
-    for s in 1..m {
-        let w = (m - 1) as f64 / (binomial(m, s) * (s * (m - s)) as f64);
-        for_each_combination(m, s, |mask| {
-            c.push(mask, w);
-        });
-    }
-    c
-}
-
-/// shap's budgeted scheme: enumerate whole coalition sizes (with complements) while the
-/// budget covers them at their kernel weight, sample the remaining sizes from the kernel
-/// distribution (each draw with its complement), merging repeated draws into weights.
-fn sampled_coalitions(m: usize, nsamples: usize, rng: &mut StdRng) -> Coalitions {
-    let mut c = Coalitions {
-        m,
-        masks: Vec::new(),
-        weights: Vec::new(),
-    };
-    let num_sizes = (m - 1).div_ceil(2);
-    let num_paired = (m - 1) / 2;
-    let mut weight_vector: Vec<f64> = (1..=num_sizes)
-        .map(|s| (m - 1) as f64 / (s * (m - s)) as f64)
-        .collect();
-    weight_vector[..num_paired]
-        .iter_mut()
-        .for_each(|w| *w *= 2.0);
-    let total: f64 = weight_vector.iter().sum();
-    weight_vector.iter_mut().for_each(|w| *w /= total);
-
-    let mut num_full = 0;
-    let mut left = nsamples as f64;
-    let mut remaining = weight_vector.clone();
-    for s in 1..=num_sizes {
-        let paired = s <= num_paired;
-        let nsubsets = binomial(m, s) * if paired { 2.0 } else { 1.0 };
-        if left * remaining[s - 1] / nsubsets < 1.0 - 1e-8 {
-            break;
-        }
-        num_full += 1;
-        left -= nsubsets;
-        if remaining[s - 1] < 1.0 {
-            let scale = 1.0 - remaining[s - 1];
-            remaining.iter_mut().for_each(|w| *w /= scale);
-        }
-        let mut w = weight_vector[s - 1] / binomial(m, s);
-        if paired {
-            w /= 2.0;
-        }
-        for_each_combination(m, s, |mask| {
-            c.push(mask, w);
-            if paired {
-                let comp: Vec<u8> = mask.iter().map(|&b| 1 - b).collect();
-                c.push(&comp, w);
-            }
-        });
-    }
-    let nfixed = c.count();
-    let mut samples_left = nsamples.saturating_sub(nfixed);
-    if num_full < num_sizes && samples_left > 0 {
-        let mut dist = weight_vector.clone();
-        dist[..num_paired].iter_mut().for_each(|w| *w /= 2.0);
-        let dist = &dist[num_full..];
-        let total: f64 = dist.iter().sum();
-        let mut used: HashMap<Vec<u8>, usize> = HashMap::new();
-        let mut perm: Vec<usize> = (0..m).collect();
-        let mut mask = vec![0u8; m];
-        let mut draws = samples_left.saturating_mul(4);
-        while samples_left > 0 && draws > 0 {
-            draws -= 1;
-            // Subset size from the kernel distribution over the sizes not enumerated.
-            let target = rng.random::<f64>() * total;
-            let mut acc = 0.0;
-            let ind = dist
-                .iter()
-                .position(|&w| {
-                    acc += w;
-                    acc > target
-                })
-                .unwrap_or(dist.len() - 1);
-            let s = ind + num_full + 1;
-            // A uniformly random subset of that size (partial Fisher–Yates).
-            for i in 0..s {
-                let j = rng.random_range(i..m);
-                perm.swap(i, j);
-            }
-            mask.fill(0);
-            perm[..s].iter().for_each(|&i| mask[i] = 1);
-            match used.get(&mask) {
-                Some(&k) => c.weights[k] += 1.0,
-                None => {
-                    used.insert(mask.clone(), c.push(&mask, 1.0));
-                    samples_left -= 1;
-                }
-            }
-            if s <= num_paired {
-                let comp: Vec<u8> = mask.iter().map(|&b| 1 - b).collect();
-                match used.get(&comp) {
-                    Some(&k) => c.weights[k] += 1.0,
-                    None if samples_left > 0 => {
-                        used.insert(comp.clone(), c.push(&comp, 1.0));
-                        samples_left -= 1;
-                    }
-                    None => {}
-                }
-            }
-        }
-        // The sampled coalitions share the kernel weight of the sizes not enumerated.
-        let weight_left: f64 = weight_vector[num_full..].iter().sum();
-        let sampled: f64 = c.weights[nfixed..].iter().sum();
-        if sampled > 0.0 {
-            c.weights[nfixed..]
-                .iter_mut()
-                .for_each(|w| *w *= weight_left / sampled);
-        }
-    }
-    c
-}
-
-/// Distinct composite rows of all (coalition, background row) pairs: `index[k·n_bg + b]`
-/// is the distinct row of coalition `k` on background row `b`, and `unique[u]` a
-/// `(b, k)` that builds row `u`. Two coalitions give the same row on `b` when they agree
-/// on the features where `x` and `b` differ (exact equality), which discrete features
-/// (flags, categories) make common. More than 64 varying features: no merging.
-fn composite_rows(
-    coalitions: &Coalitions,
-    varying: &[usize],
-    x: &[f32],
-    bg: &[f32],
-    n_in: usize,
-) -> (Vec<u32>, Vec<(u32, u32)>) {
-    let n_bg = bg.len() / n_in;
-    let n_coal = coalitions.count();
-    let mut index = Vec::with_capacity(n_coal * n_bg);
-    let mut unique = Vec::new();
-    if varying.len() > 64 {
-        for k in 0..n_coal {
-            for b in 0..n_bg {
-                index.push(unique.len() as u32);
-                unique.push((b as u32, k as u32));
-            }
-        }
-        return (index, unique);
-    }
-    let differs: Vec<u64> = bg
-        .chunks_exact(n_in)
-        .map(|b| {
-            varying
-                .iter()
-                .enumerate()
-                .filter(|&(_, &i)| x[i] != b[i])
-                .fold(0u64, |acc, (c, _)| acc | 1 << c)
-        })
-        .collect();
-    let mut seen: Vec<HashMap<u64, u32>> = vec![HashMap::new(); n_bg];
-    for k in 0..n_coal {
-        let bits = coalitions
-            .mask(k)
-            .iter()
-            .enumerate()
-            .fold(0u64, |acc, (c, &on)| acc | u64::from(on) << c);
-        for (b, (map, &d)) in seen.iter_mut().zip(&differs).enumerate() {
-            let next = unique.len() as u32;
-            let u = *map.entry(bits & d).or_insert(next);
-            if u == next {
-                unique.push((b as u32, k as u32));
-            }
-            index.push(u);
-        }
-    }
-    (index, unique)
-}
-
 /// Kernel SHAP attributions of the observations `x` (`[n_obs, inputs]`) of `model`
 /// against `background`. `expected` is the weighted background mean of the model;
 /// efficiency holds exactly (f64) for every observation and output.
@@ -590,9 +145,56 @@ pub fn kernel_shap<M: BatchModel + ?Sized>(
     x: &[f32],
     options: &KernelOptions,
 ) -> Result<Attributions> {
+    let n_obs = check_inputs(model, background, x, options)?;
+    let explainer = Explainer {
+        model,
+        pool: pool(options.threads)?,
+        options,
+        n_in: model.n_inputs(),
+        n_out: model.n_outputs(),
+        n_bg: background.rows(),
+        bg: background.data(),
+        bw: background.weights(),
+    };
+    let (n_in, n_out) = (explainer.n_in, explainer.n_out);
+    let fx: Vec<f64> = explainer
+        .pool
+        .install(|| explainer.predict_checked(x, n_obs))?
+        .into_iter()
+        .map(f64::from)
+        .collect();
+    let fnull = explainer.expected_output()?;
+    let mut values = vec![0f64; n_obs * n_in * n_out];
+    for o in 0..n_obs {
+        let observation = Observation {
+            index: o,
+            x: &x[o * n_in..(o + 1) * n_in],
+            delta: (0..n_out).map(|j| fx[o * n_out + j] - fnull[j]).collect(),
+        };
+        let block = &mut values[o * n_in * n_out..(o + 1) * n_in * n_out];
+        explainer.explain(&observation, &fnull, block)?;
+    }
+    Ok(Attributions {
+        n_obs,
+        n_inputs: n_in,
+        n_outputs: n_out,
+        values,
+        expected: fnull,
+        outputs: fx,
+    })
+}
+
+/// Rejects inconsistent widths, bad observations and out-of-range options before any
+/// model call, so bad input is an error and never a panic deep in the batches. Returns
+/// the number of observations.
+fn check_inputs<M: BatchModel + ?Sized>(
+    model: &M,
+    background: &Background,
+    x: &[f32],
+    options: &KernelOptions,
+) -> Result<usize> {
     let n_in = model.n_inputs();
-    let n_out = model.n_outputs();
-    if n_out == 0 {
+    if model.n_outputs() == 0 {
         return Err(ShapError::Shape("model has no outputs".into()));
     }
     if background.width() != n_in {
@@ -608,19 +210,66 @@ pub fn kernel_shap<M: BatchModel + ?Sized>(
     if options.batch_rows == 0 {
         return Err(ShapError::Option("batch_rows must be at least 1".into()));
     }
-    let pool = pool(options.threads)?;
-    let n_bg = background.rows();
-    let bg = background.data();
-    let bw = background.weights();
+    Ok(n_obs)
+}
 
-    let eval = |rows: &[f32], n: usize| -> Result<Vec<f32>> {
-        let y = model.predict(rows, n)?;
-        if y.len() != n * n_out {
-            return Err(ShapError::Shape(format!(
-                "model returned {} values for {n} rows × {n_out} outputs",
-                y.len()
-            )));
-        }
+/// The error for a model that returned the wrong number of values, shared by
+/// [`FnModel`] and the check on every batch.
+fn check_output_len(len: usize, n_rows: usize, n_outputs: usize) -> Result<()> {
+    if len != n_rows * n_outputs {
+        return Err(ShapError::Shape(format!(
+            "model returned {len} values for {n_rows} rows × {n_outputs} outputs"
+        )));
+    }
+    Ok(())
+}
+
+/// Index drawn with probability ∝ `weights` (`total` their sum): the first whose
+/// running sum passes a uniform draw, the last if rounding lets the draw pass them all.
+/// One draw of the RNG, as k-means++ seeding and the coalition-size sampling need.
+fn draw_weighted(weights: &[f64], total: f64, rng: &mut StdRng) -> usize {
+    let target = rng.random::<f64>() * total;
+    let mut acc = 0.0;
+    weights
+        .iter()
+        .position(|&w| {
+            acc += w;
+            acc > target
+        })
+        .unwrap_or(weights.len() - 1)
+}
+
+/// What explaining every observation shares (model, background, pool, options), so the
+/// per-observation steps take one context instead of eight parameters.
+struct Explainer<'a, M: ?Sized> {
+    model: &'a M,
+    pool: rayon::ThreadPool,
+    options: &'a KernelOptions,
+    n_in: usize,
+    n_out: usize,
+    /// Background rows.
+    n_bg: usize,
+    /// Background data, row-major `[n_bg, n_in]`.
+    bg: &'a [f32],
+    /// Background weights, summing to 1.
+    bw: &'a [f64],
+}
+
+/// One observation being explained: its position (which seeds its coalition sampler),
+/// its inputs and its output minus the base value (what its attributions must sum to).
+struct Observation<'a> {
+    index: usize,
+    x: &'a [f32],
+    delta: Vec<f64>,
+}
+
+impl<M: BatchModel + ?Sized> Explainer<'_, M> {
+    /// The model on `n` rows, with its output length and finiteness checked: a model
+    /// error must surface as an error naming the row, not as NaN attributions.
+    fn predict_checked(&self, rows: &[f32], n: usize) -> Result<Vec<f32>> {
+        let n_out = self.n_out;
+        let y = self.model.predict(rows, n)?;
+        check_output_len(y.len(), n, n_out)?;
         if let Some(k) = y.iter().position(|v| !v.is_finite()) {
             return Err(ShapError::NonFinite(format!(
                 "model output {} of row {} is {}",
@@ -630,43 +279,57 @@ pub fn kernel_shap<M: BatchModel + ?Sized>(
             )));
         }
         Ok(y)
-    };
-    let fx: Vec<f64> = pool
-        .install(|| eval(x, n_obs))?
-        .into_iter()
-        .map(f64::from)
-        .collect();
-    let fb = pool.install(|| eval(bg, n_bg))?;
-    let mut fnull = vec![0f64; n_out];
-    for (row, &w) in fb.chunks_exact(n_out).zip(bw) {
-        fnull
-            .iter_mut()
-            .zip(row)
-            .for_each(|(e, &v)| *e += w * f64::from(v));
     }
 
-    let mut values = vec![0f64; n_obs * n_in * n_out];
-    for o in 0..n_obs {
-        let xo = &x[o * n_in..(o + 1) * n_in];
-        let block = &mut values[o * n_in * n_out..(o + 1) * n_in * n_out];
-        let delta: Vec<f64> = (0..n_out).map(|j| fx[o * n_out + j] - fnull[j]).collect();
-        // Features equal to every background value cannot change the output (np.isclose).
-        let varying: Vec<usize> = (0..n_in)
-            .filter(|&i| {
-                bg.chunks_exact(n_in).any(|b| {
-                    let (a, r) = (f64::from(xo[i]), f64::from(b[i]));
-                    (a - r).abs() > 1e-8 + 1e-5 * r.abs()
-                })
-            })
-            .collect();
+    /// The base value: the model's weighted mean over the background, `v(∅)`.
+    fn expected_output(&self) -> Result<Vec<f64>> {
+        let fb = self
+            .pool
+            .install(|| self.predict_checked(self.bg, self.n_bg))?;
+        let mut fnull = vec![0f64; self.n_out];
+        for (row, &w) in fb.chunks_exact(self.n_out).zip(self.bw) {
+            fnull
+                .iter_mut()
+                .zip(row)
+                .for_each(|(e, &v)| *e += w * f64::from(v));
+        }
+        Ok(fnull)
+    }
+
+    /// Fills `block` (`[n_in, n_out]`, zero on entry) with the attributions of one
+    /// observation; features that never differ from the background keep 0.
+    fn explain(&self, obs: &Observation, fnull: &[f64], block: &mut [f64]) -> Result<()> {
+        let n_out = self.n_out;
+        let varying = varying_features(obs.x, self.bg, self.n_in);
         let m = varying.len();
         if m == 0 {
-            continue;
+            return Ok(());
         }
         if m == 1 {
-            block[varying[0] * n_out..(varying[0] + 1) * n_out].copy_from_slice(&delta);
-            continue;
+            block[varying[0] * n_out..(varying[0] + 1) * n_out].copy_from_slice(&obs.delta);
+            return Ok(());
         }
+        let coalitions = self.coalitions(m, obs.index);
+        let ey = self.coalition_values(&coalitions, &varying, obs.x)?;
+        let phi = constrained_least_squares(&coalitions, &ey, fnull, &obs.delta);
+        let last = m - 1;
+        for j in 0..n_out {
+            let mut sum = 0.0;
+            for c in 0..last {
+                let v = phi[c * n_out + j];
+                block[varying[c] * n_out + j] = v;
+                sum += v;
+            }
+            block[varying[last] * n_out + j] = obs.delta[j] - sum;
+        }
+        Ok(())
+    }
+
+    /// The coalitions of `m` varying features for observation `o`: all of them (exact
+    /// Shapley values) when few enough, else shap's budgeted sample from `o`'s own seed
+    /// stream (so explaining rows in separate calls gives the same values).
+    fn coalitions(&self, m: usize, o: usize) -> Coalitions {
+        let options = self.options;
         let max_samples = if m <= 30 {
             (1usize << m) - 2
         } else {
@@ -674,42 +337,50 @@ pub fn kernel_shap<M: BatchModel + ?Sized>(
         };
         let nsamples = options.nsamples.unwrap_or(2 * m + 2048).min(max_samples);
         let exact = m <= 30 && (m <= options.exact_max_inputs || nsamples >= max_samples);
-        let coalitions = if exact {
+        if exact {
             exact_coalitions(m)
         } else {
             let stream = options
                 .seed
                 .wrapping_add((o as u64).wrapping_mul(OBSERVATION_SEED_STRIDE));
             sampled_coalitions(m, nsamples, &mut StdRng::seed_from_u64(stream))
-        };
+        }
+    }
 
-        // v(S) for every coalition: the model on (x on S, background elsewhere), averaged
-        // over the weighted background. Rows are built and evaluated once per distinct
-        // composite (a coalition's features that equal the background row's values do not
-        // change the row), batch by batch on the pool.
+    /// v(S) for every coalition, row-major `[n_coal, n_out]`: the model on (x on S,
+    /// background elsewhere), averaged over the weighted background. Rows are built and
+    /// evaluated once per distinct composite (a coalition's features that equal the
+    /// background row's values do not change the row), batch by batch on the pool.
+    fn coalition_values(
+        &self,
+        coalitions: &Coalitions,
+        varying: &[usize],
+        xo: &[f32],
+    ) -> Result<Vec<f64>> {
+        let (n_in, n_out, n_bg, bg) = (self.n_in, self.n_out, self.n_bg, self.bg);
         let n_coal = coalitions.count();
         if n_coal.saturating_mul(n_bg) > u32::MAX as usize {
             return Err(ShapError::Option(format!(
                 "{n_coal} coalitions × {n_bg} background rows is too many model rows"
             )));
         }
-        let (index, unique) = composite_rows(&coalitions, &varying, xo, bg, n_in);
-        let y = pool.install(|| -> Result<Vec<f32>> {
+        let (index, unique) = composite_rows(coalitions, varying, xo, bg, n_in);
+        let y = self.pool.install(|| -> Result<Vec<f32>> {
             let parts: Vec<Result<Vec<f32>>> = unique
-                .par_chunks(options.batch_rows)
+                .par_chunks(self.options.batch_rows)
                 .map(|batch| {
                     let mut rows = Vec::with_capacity(batch.len() * n_in);
                     for &(b, k) in batch {
                         let start = rows.len();
                         rows.extend_from_slice(&bg[b as usize * n_in..(b as usize + 1) * n_in]);
                         let row = &mut rows[start..];
-                        for (&on, &i) in coalitions.mask(k as usize).iter().zip(&varying) {
+                        for (&on, &i) in coalitions.mask(k as usize).iter().zip(varying) {
                             if on == 1 {
                                 row[i] = xo[i];
                             }
                         }
                     }
-                    eval(&rows, batch.len())
+                    self.predict_checked(&rows, batch.len())
                 })
                 .collect();
             let mut y = Vec::with_capacity(unique.len() * n_out);
@@ -720,58 +391,66 @@ pub fn kernel_shap<M: BatchModel + ?Sized>(
         })?;
         let mut ey = vec![0f64; n_coal * n_out];
         for (k, e) in ey.chunks_exact_mut(n_out).enumerate() {
-            for (&u, &w) in index[k * n_bg..(k + 1) * n_bg].iter().zip(bw) {
+            for (&u, &w) in index[k * n_bg..(k + 1) * n_bg].iter().zip(self.bw) {
                 let row = &y[u as usize * n_out..(u as usize + 1) * n_out];
                 e.iter_mut()
                     .zip(row)
                     .for_each(|(e, &v)| *e += w * f64::from(v));
             }
         }
+        Ok(ey)
+    }
+}
 
-        // Weighted least squares with Σφ = Δ imposed by eliminating the last feature:
-        // v(S) − v(∅) − z_last·Δ = Σ_{c<last} φ_c (z_c − z_last).
-        let last = m - 1;
-        let mut a = vec![0f64; last * last];
-        let mut rhs = vec![0f64; last * n_out];
-        let mut e = vec![0f64; last];
-        for k in 0..n_coal {
-            let mask = coalitions.mask(k);
-            let w = coalitions.weights[k];
-            let zl = f64::from(mask[last]);
-            for c in 0..last {
-                e[c] = f64::from(mask[c]) - zl;
-            }
-            for c in 0..last {
-                let wc = w * e[c];
-                if wc == 0.0 {
-                    continue;
-                }
-                for d in 0..last {
-                    a[c * last + d] += wc * e[d];
-                }
-                for j in 0..n_out {
-                    let y = ey[k * n_out + j] - fnull[j] - zl * delta[j];
-                    rhs[c * n_out + j] += wc * y;
-                }
-            }
+/// Indices of the features of `xo` that differ from some background row: features equal
+/// to every background value cannot change the output (np.isclose), so shap leaves them
+/// out of the regression with attribution 0.
+fn varying_features(xo: &[f32], bg: &[f32], n_in: usize) -> Vec<usize> {
+    (0..n_in)
+        .filter(|&i| {
+            bg.chunks_exact(n_in).any(|b| {
+                let (a, r) = (f64::from(xo[i]), f64::from(b[i]));
+                (a - r).abs() > 1e-8 + 1e-5 * r.abs()
+            })
+        })
+        .collect()
+}
+
+/// φ of all varying features but the last, row-major `[m − 1, n_out]`, from the weighted
+/// least squares of the coalition values `ey` with Σφ = Δ imposed by eliminating the last
+/// feature: v(S) − v(∅) − z_last·Δ = Σ_{c<last} φ_c (z_c − z_last). The last feature's φ
+/// is Δ minus their sum.
+fn constrained_least_squares(
+    coalitions: &Coalitions,
+    ey: &[f64],
+    fnull: &[f64],
+    delta: &[f64],
+) -> Vec<f64> {
+    let n_out = fnull.len();
+    let last = coalitions.features() - 1;
+    let mut a = vec![0f64; last * last];
+    let mut rhs = vec![0f64; last * n_out];
+    let mut e = vec![0f64; last];
+    for k in 0..coalitions.count() {
+        let mask = coalitions.mask(k);
+        let w = coalitions.weights[k];
+        let zl = f64::from(mask[last]);
+        for c in 0..last {
+            e[c] = f64::from(mask[c]) - zl;
         }
-        let phi = solve_symmetric(&a, &rhs, last, n_out);
-        for j in 0..n_out {
-            let mut sum = 0.0;
-            for c in 0..last {
-                let v = phi[c * n_out + j];
-                block[varying[c] * n_out + j] = v;
-                sum += v;
+        for c in 0..last {
+            let wc = w * e[c];
+            if wc == 0.0 {
+                continue;
             }
-            block[varying[last] * n_out + j] = delta[j] - sum;
+            for d in 0..last {
+                a[c * last + d] += wc * e[d];
+            }
+            for j in 0..n_out {
+                let y = ey[k * n_out + j] - fnull[j] - zl * delta[j];
+                rhs[c * n_out + j] += wc * y;
+            }
         }
     }
-    Ok(Attributions {
-        n_obs,
-        n_inputs: n_in,
-        n_outputs: n_out,
-        values,
-        expected: fnull,
-        outputs: fx,
-    })
+    solve_symmetric(&a, &rhs, last, n_out)
 }

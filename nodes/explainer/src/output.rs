@@ -152,56 +152,153 @@ pub fn write_all(
     per_pair_plots: bool,
 ) -> Result<Written> {
     std::fs::create_dir_all(dir).map_err(|err| file_err(dir, err))?;
-    let mut files = Vec::new();
-    let values = dir.join("shap_values.safetensors");
-    write_shap_values(&values, e)?;
-    files.push(values);
-    let summary = dir.join("explanation.json");
-    write_atomic(
-        &summary,
-        (serde_json::to_string_pretty(&summary_json(e)).expect("JSON values serialise") + "\n")
-            .as_bytes(),
-    )?;
-    files.push(summary);
-    let rel_json = dir.join("relevance.json");
-    write_atomic(
-        &rel_json,
-        (serde_json::to_string_pretty(relevance).expect("the report serialises") + "\n").as_bytes(),
-    )?;
-    files.push(rel_json);
-    let rel_csv = dir.join("relevance.csv");
-    write_atomic(&rel_csv, relevance.to_csv().as_bytes())?;
-    files.push(rel_csv);
-
-    let method = match e.settings.method {
-        crate::Method::Deep => "Deep SHAP",
-        crate::Method::Kernel => "Kernel SHAP",
+    let mut out = OutputDir {
+        dir,
+        e,
+        relevance,
+        files: Vec::new(),
     };
-    let stem = dir.join("heatmap");
-    let flat: Vec<f64> = relevance.mean_abs_shap.iter().flatten().copied().collect();
-    heatmap(
-        &stem,
-        &format!(
-            "{} forward model: mean |{method}| of actions on s(t+1), {} observations",
-            e.experiment, e.attributions.n_obs
-        ),
-        &relevance.action_names,
-        &relevance.state_names,
-        &flat,
-        "mean |SHAP| (units of the state feature)",
-        HeatmapScale::Log,
-    )?;
-    files.extend([stem.with_extension("png"), stem.with_extension("svg")]);
+    out.write_data()?;
+    out.write_heatmap()?;
+    out.write_pdp_grid()?;
+    if per_pair_plots {
+        out.write_pair_plots()?;
+    }
+    Ok(Written { files: out.files })
+}
 
-    let panel = |a: usize, j: usize| Scatter {
-        title: format!(
-            "{} → {}",
-            relevance.action_names[a], relevance.state_names[j]
-        ),
-        x_label: relevance.action_names[a].clone(),
-        y_label: format!("SHAP on {}(t+1)", relevance.state_names[j]),
-        points: e.dependence(a, j),
-    };
+/// One explanation being written into one directory: what every file is made from, and
+/// the files written so far (in order), so each kind of output is one method.
+struct OutputDir<'a> {
+    dir: &'a Path,
+    e: &'a Explanation,
+    relevance: &'a Relevance,
+    files: Vec<PathBuf>,
+}
+
+impl OutputDir<'_> {
+    /// The numbers: attributions (safetensors), the summary and the relevance report
+    /// (JSON and CSV), for scripts rather than readers.
+    fn write_data(&mut self) -> Result<()> {
+        let (dir, e, relevance) = (self.dir, self.e, self.relevance);
+        let values = dir.join("shap_values.safetensors");
+        write_shap_values(&values, e)?;
+        self.files.push(values);
+        let summary = dir.join("explanation.json");
+        write_atomic(
+            &summary,
+            (serde_json::to_string_pretty(&summary_json(e)).expect("JSON values serialise") + "\n")
+                .as_bytes(),
+        )?;
+        self.files.push(summary);
+        let rel_json = dir.join("relevance.json");
+        write_atomic(
+            &rel_json,
+            (serde_json::to_string_pretty(relevance).expect("the report serialises") + "\n")
+                .as_bytes(),
+        )?;
+        self.files.push(rel_json);
+        let rel_csv = dir.join("relevance.csv");
+        write_atomic(&rel_csv, relevance.to_csv().as_bytes())?;
+        self.files.push(rel_csv);
+        Ok(())
+    }
+
+    /// The method's name as the figure titles spell it.
+    fn method(&self) -> &'static str {
+        match self.e.settings.method {
+            crate::Method::Deep => "Deep SHAP",
+            crate::Method::Kernel => "Kernel SHAP",
+        }
+    }
+
+    /// The paper's knowledge-extraction figure: mean |SHAP| of every action on every
+    /// state feature, on a log scale because the values span decades.
+    fn write_heatmap(&mut self) -> Result<()> {
+        let (e, relevance) = (self.e, self.relevance);
+        let stem = self.dir.join("heatmap");
+        let flat: Vec<f64> = relevance.mean_abs_shap.iter().flatten().copied().collect();
+        heatmap(
+            &stem,
+            &format!(
+                "{} forward model: mean |{}| of actions on s(t+1), {} observations",
+                e.experiment,
+                self.method(),
+                e.attributions.n_obs
+            ),
+            &relevance.action_names,
+            &relevance.state_names,
+            &flat,
+            "mean |SHAP| (units of the state feature)",
+            HeatmapScale::Log,
+        )?;
+        self.files
+            .extend([stem.with_extension("png"), stem.with_extension("svg")]);
+        Ok(())
+    }
+
+    /// The PDP grid of [`GRID_PANELS`] pairs: the paper's pairs first, so the figure can
+    /// be set beside the paper's, then the strongest others.
+    fn write_pdp_grid(&mut self) -> Result<()> {
+        let panels: Vec<Scatter> = grid_pairs(self.relevance)
+            .iter()
+            .map(|&(a, j)| self.panel(a, j))
+            .collect();
+        let grid = self.dir.join("pdp_grid");
+        scatter_grid(
+            &grid,
+            &format!(
+                "{} partial dependence ({}): action value vs its contribution",
+                self.e.experiment,
+                self.method()
+            ),
+            &panels,
+            4,
+        )?;
+        self.files
+            .extend([grid.with_extension("png"), grid.with_extension("svg")]);
+        Ok(())
+    }
+
+    /// One PDP per (action, state feature) pair, for looking up any pair the grid leaves
+    /// out.
+    fn write_pair_plots(&mut self) -> Result<()> {
+        let relevance = self.relevance;
+        let pdp = self.dir.join("pdp");
+        std::fs::create_dir_all(&pdp).map_err(|err| file_err(&pdp, err))?;
+        for a in 0..relevance.action_names.len() {
+            for j in 0..relevance.state_names.len() {
+                let stem = pdp.join(format!(
+                    "{}__{}",
+                    relevance.action_names[a], relevance.state_names[j]
+                ));
+                scatter(&stem, &self.panel(a, j))?;
+                self.files
+                    .extend([stem.with_extension("png"), stem.with_extension("svg")]);
+            }
+        }
+        Ok(())
+    }
+
+    /// The partial dependence panel of action `a` on state feature `j`, the same in the
+    /// grid and in the per-pair files.
+    fn panel(&self, a: usize, j: usize) -> Scatter {
+        let relevance = self.relevance;
+        Scatter {
+            title: format!(
+                "{} → {}",
+                relevance.action_names[a], relevance.state_names[j]
+            ),
+            x_label: relevance.action_names[a].clone(),
+            y_label: format!("SHAP on {}(t+1)", relevance.state_names[j]),
+            points: self.e.dependence(a, j),
+        }
+    }
+}
+
+/// The (action, state) pairs of the PDP grid: [`PAPER_PAIRS`] present in this model,
+/// then the highest-scoring other pairs up to [`GRID_PANELS`].
+fn grid_pairs(relevance: &Relevance) -> Vec<(usize, usize)> {
     let index = |names: &[String], n: &str| names.iter().position(|x| x == n);
     let mut pairs: Vec<(usize, usize)> = PAPER_PAIRS
         .iter()
@@ -224,32 +321,5 @@ pub fn write_all(
             pairs.push((a, j));
         }
     }
-    let panels: Vec<Scatter> = pairs.iter().map(|&(a, j)| panel(a, j)).collect();
-    let grid = dir.join("pdp_grid");
-    scatter_grid(
-        &grid,
-        &format!(
-            "{} partial dependence ({method}): action value vs its contribution",
-            e.experiment
-        ),
-        &panels,
-        4,
-    )?;
-    files.extend([grid.with_extension("png"), grid.with_extension("svg")]);
-
-    if per_pair_plots {
-        let pdp = dir.join("pdp");
-        std::fs::create_dir_all(&pdp).map_err(|err| file_err(&pdp, err))?;
-        for a in 0..relevance.action_names.len() {
-            for j in 0..relevance.state_names.len() {
-                let stem = pdp.join(format!(
-                    "{}__{}",
-                    relevance.action_names[a], relevance.state_names[j]
-                ));
-                scatter(&stem, &panel(a, j))?;
-                files.extend([stem.with_extension("png"), stem.with_extension("svg")]);
-            }
-        }
-    }
-    Ok(Written { files })
+    pairs
 }

@@ -31,7 +31,35 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     // First of all: a SIGINT that arrives while the node starts up must not be lost (a
     // background job of a non-interactive shell starts with SIGINT ignored until then).
     let stop = stop_flag();
-    let specs = [
+    let mut node = RosNode::new("causal_arm_trainer", &param_specs(), ros_args)?;
+    let dir = node.params().string("model_dir").to_owned();
+    if dir.is_empty() {
+        bail!(
+            "parameter model_dir is required: --ros-args -p model_dir:=DIR (a directory written by `causal-arm train`, or where to train to with -p bag:=DIR)"
+        );
+    }
+    let bags = node.params().string_array("bag").to_vec();
+    if !bags.is_empty() {
+        match train_first(&node, &bags, std::path::Path::new(&dir), &stop) {
+            Err(e) if stop.load(Ordering::SeqCst) => {
+                tracing::info!("stopping: {e}");
+                return Ok(());
+            }
+            result => result?,
+        }
+    }
+    let models = ModelSet::load(
+        std::path::Path::new(&dir),
+        node.params().string("forward_model"),
+        node.params().string("inverse_model"),
+    )?;
+    serve(&mut node, &models, &dir, &stop)
+}
+
+/// The node's parameters: where the models are and, to train them first, from which
+/// bags and how.
+fn param_specs() -> Vec<ParamSpec> {
+    vec![
         ParamSpec::new(
             "model_dir",
             ParamValue::String(String::new()),
@@ -95,29 +123,17 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             ParamValue::String("im-mono".into()),
             "model file serving predict_action",
         ),
-    ];
-    let mut node = RosNode::new("causal_arm_trainer", &specs, ros_args)?;
-    let dir = node.params().string("model_dir").to_owned();
-    if dir.is_empty() {
-        bail!(
-            "parameter model_dir is required: --ros-args -p model_dir:=DIR (a directory written by `causal-arm train`, or where to train to with -p bag:=DIR)"
-        );
-    }
-    let bags = node.params().string_array("bag").to_vec();
-    if !bags.is_empty() {
-        match train_first(&node, &bags, std::path::Path::new(&dir), &stop) {
-            Err(e) if stop.load(Ordering::SeqCst) => {
-                tracing::info!("stopping: {e}");
-                return Ok(());
-            }
-            result => result?,
-        }
-    }
-    let models = ModelSet::load(
-        std::path::Path::new(&dir),
-        node.params().string("forward_model"),
-        node.params().string("inverse_model"),
-    )?;
+    ]
+}
+
+/// Answers the four services from `models` until SIGINT or shutdown; every request gets a
+/// reply, so one bad request never stops the node.
+fn serve(
+    node: &mut RosNode,
+    models: &ModelSet,
+    dir: &str,
+    stop: &Arc<AtomicBool>,
+) -> anyhow::Result<()> {
     let next_state = node.server::<PredictNextState>(PREDICT_NEXT_STATE)?;
     let action = node.server::<PredictAction>(PREDICT_ACTION)?;
     let rollout = node.server::<Rollout>(ROLLOUT)?;
@@ -127,7 +143,7 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         models.experiment(),
         models.model_info(&Default::default()).models.join(", ")
     );
-    serve_until_stopped(&stop, || async {
+    serve_until_stopped(stop, || async {
         futures::select! {
             r = next_state.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| next_state.send_response(id, models.predict_next_state(&req)).is_ok())),
             r = action.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| action.send_response(id, models.predict_action(&req)).is_ok())),

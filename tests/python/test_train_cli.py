@@ -108,3 +108,29 @@ def test_rollout_writes_curves_and_refuses_bad_input(run_cli, bags):
     (out / "fm.json").write_text("{broken")
     r = run_cli("rollout", "--model", out, "--bag", bags / "exp1", "--cache", bags / "cache")
     assert r.returncode == 1 and "fm.json" in r.stderr and "not a model description" in r.stderr, r.stderr
+
+
+def test_factored_auto_says_which_candidate_it_kept(run_cli, bags, tmp_path):
+    # exp1's true graph as a claims file: a_i moves theta_i, a0..a5 move the effector.
+    states = [f"theta{i}" for i in range(7)] + ["ef_x", "ef_y", "ef_z"]
+    actions = [f"a{i}" for i in range(7)]
+    drives = [[s == f"theta{a}" or (s.startswith("ef_") and a < 6) for s in states] for a in range(7)]
+    claims = tmp_path / "claims.json"
+    claims.write_text(json.dumps([{"method": "truth", "context": "all", "action_names": actions,
+                                   "state_names": states, "drives": drives}]))
+    out = tmp_path / "factored"
+    r = train(run_cli, bags, "--bag", bags / "exp1", "--model", "fm-factored", "--graph", claims,
+              "--factored-hidden", "16", "--max-folds", "1", "--out", out)
+    assert r.returncode == 0, r.stderr
+    runs = json.loads((out / "metrics.json").read_text())["models"]["fm-factored"]["runs"]
+    assert [run["label"] for run in runs] == [
+        "fm-factored theta [none] fold 1/2", "fm-factored theta [determined] fold 1/2",
+        "fm-factored ef [none] fold 1/2", "fm-factored ef [upstream] fold 1/2"]
+    for head in (runs[:2], runs[2:]):
+        kept = [run for run in head if run["selection"]["chosen"]]
+        assert len(kept) == 1
+        assert kept[0]["selection"]["validation_mae"] == min(run["selection"]["validation_mae"] for run in head)
+        assert f"{kept[0]['label']}: 2 epochs on" in r.stderr and "(kept)" in r.stderr, r.stderr
+    r = train(run_cli, bags, "--bag", bags / "exp1", "--model", "fm-factored", "--graph", claims,
+              "--factored-auxiliary", "sometimes", "--out", out)
+    assert r.returncode != 0 and "none, upstream, determined, auto" in r.stderr, r.stderr

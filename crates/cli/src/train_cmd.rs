@@ -358,8 +358,16 @@ fn print_results(data: &Dataset, options: &TrainOptions, saved: &SavedRun) {
         eprintln!("wrote {}", names.join(" and "));
     }
     for run in &saved.runs {
+        let selection = match run.selection {
+            Some(s) => format!(
+                ", validation MAE {:.4e}{}",
+                s.validation_mae,
+                if s.chosen { " (kept)" } else { "" }
+            ),
+            None => String::new(),
+        };
         eprintln!(
-            "  {}: {} epochs on {} rows in {:.1} s",
+            "  {}: {} epochs on {} rows in {:.1} s{selection}",
             run.label, run.epochs, run.rows, run.wall_s
         );
         for point in &run.curve {

@@ -290,130 +290,144 @@ impl Exp2Babbler {
 
     /// The next command for `state`.
     pub fn next(&mut self, state: &SimState) -> Command {
-        let q = state.joint_positions;
+        match self.phase.clone() {
+            Phase::Babble { min_remaining } => self.babble(&state.joint_positions, min_remaining),
+            Phase::Approach { steps } => self.approach(state, steps),
+            Phase::Descend { steps } => self.descend(state, steps),
+            Phase::Manoeuvre { remaining } => self.manoeuvre(state, remaining),
+            Phase::Place { steps, x, y } => self.place(state, steps, x, y),
+        }
+    }
+
+    /// Empty-handed babbling near `q`; at random switches the magnet on and starts the
+    /// approach (or sends a spurious "off").
+    fn babble(&mut self, q: &[f64; ARM_DOF], min_remaining: u32) -> Command {
+        let switch_on =
+            min_remaining == 0 && self.rng.random_bool(self.config.switch_on_probability);
+        let spurious_off = self.rng.random_bool(self.config.spurious_off_probability);
+        let targets = self.random_near(q, self.config.babble_sigma, false);
+        if switch_on {
+            self.phase = Phase::Approach { steps: 0 };
+            return Command {
+                joint_targets: if self.config.move_while_switching {
+                    targets
+                } else {
+                    *q
+                },
+                magnet: 1,
+            };
+        }
+        self.phase = Phase::Babble {
+            min_remaining: min_remaining.saturating_sub(1),
+        };
+        Command {
+            joint_targets: targets,
+            magnet: if spurious_off { -1 } else { 0 },
+        }
+    }
+
+    /// Point `approach_height` above the top of the cube in `state`, where ef goes before
+    /// descending and where it lifts the picked cube to.
+    fn above_cube(&self, state: &SimState) -> nalgebra::Vector3<f64> {
         let cube = state.cube_pose.translation.vector;
         let half = self.config.cube_size / 2.0;
-        match self.phase.clone() {
-            Phase::Babble { min_remaining } => {
-                let switch_on =
-                    min_remaining == 0 && self.rng.random_bool(self.config.switch_on_probability);
-                let spurious_off = self.rng.random_bool(self.config.spurious_off_probability);
-                let targets = self.random_near(&q, self.config.babble_sigma, false);
-                if switch_on {
-                    self.phase = Phase::Approach { steps: 0 };
-                    return Command {
-                        joint_targets: if self.config.move_while_switching {
-                            targets
-                        } else {
-                            q
-                        },
-                        magnet: 1,
-                    };
-                }
-                self.phase = Phase::Babble {
-                    min_remaining: min_remaining.saturating_sub(1),
-                };
-                Command {
-                    joint_targets: targets,
-                    magnet: if spurious_off { -1 } else { 0 },
-                }
-            }
-            Phase::Approach { steps } => {
-                let above = IkTarget::pointing_down(
-                    cube.x,
-                    cube.y,
-                    cube.z + half + self.config.approach_height,
-                );
-                let Some(targets) = self.ik(&q, above) else {
-                    return self.release(&q);
-                };
-                let close = (state.ef_pose.translation.vector
-                    - nalgebra::Vector3::new(
-                        cube.x,
-                        cube.y,
-                        cube.z + half + self.config.approach_height,
-                    ))
-                .norm()
-                    < 0.01;
-                self.phase = if close {
-                    Phase::Descend { steps: steps + 1 }
-                } else {
-                    Phase::Approach { steps: steps + 1 }
-                };
-                if steps >= self.config.reach_timeout_steps {
-                    return self.release(&q);
-                }
-                Command {
-                    joint_targets: targets,
-                    magnet: 0,
-                }
-            }
-            Phase::Descend { steps } => {
-                if state.holding {
-                    let (lo, hi) = self.config.manoeuvre_steps;
-                    let remaining = self.rng.random_range(lo..=hi);
-                    self.phase = Phase::Manoeuvre { remaining };
-                    let lift = self.ik(
-                        &q,
-                        IkTarget::pointing_down(
-                            cube.x,
-                            cube.y,
-                            cube.z + half + self.config.approach_height,
-                        ),
-                    );
-                    return Command {
-                        joint_targets: lift.unwrap_or(q),
-                        magnet: 0,
-                    };
-                }
-                if steps >= self.config.reach_timeout_steps {
-                    return self.release(&q);
-                }
-                let touch = IkTarget::pointing_down(cube.x, cube.y, cube.z + half + 0.005);
-                let Some(targets) = self.ik(&q, touch) else {
-                    return self.release(&q);
-                };
-                self.phase = Phase::Descend { steps: steps + 1 };
-                Command {
-                    joint_targets: targets,
-                    magnet: 0,
-                }
-            }
-            Phase::Manoeuvre { remaining } => {
-                if !state.holding {
-                    return self.release(&q);
-                }
-                if remaining == 0 {
-                    let ([cx, cy], [hx, hy]) = self.config.table_area;
-                    let x = cx + self.rng.random_range(-0.8..=0.8) * hx;
-                    let y = cy + self.rng.random_range(-0.8..=0.8) * hy;
-                    self.phase = Phase::Place { steps: 0, x, y };
-                    return self.place_command(&q, x, y);
-                }
-                self.phase = Phase::Manoeuvre {
-                    remaining: remaining - 1,
-                };
-                let targets = self.random_near(&q, self.config.manoeuvre_sigma, true);
-                Command {
-                    joint_targets: targets,
-                    magnet: 0,
-                }
-            }
-            Phase::Place { steps, x, y } => {
-                let target = self.release_pose(x, y).position;
-                let arrived = (state.ef_pose.translation.vector - target.coords).norm() < 0.01
-                    && state.joint_velocities.iter().all(|v| v.abs() < 0.05);
-                if !state.holding || arrived || steps >= self.config.place_timeout_steps {
-                    return self.release(&q);
-                }
-                self.phase = Phase::Place {
-                    steps: steps + 1,
-                    x,
-                    y,
-                };
-                self.place_command(&q, x, y)
-            }
+        nalgebra::Vector3::new(cube.x, cube.y, cube.z + half + self.config.approach_height)
+    }
+
+    /// Moves above the cube; descends once there, gives up (releases) on timeout or
+    /// when IK fails.
+    fn approach(&mut self, state: &SimState, steps: u32) -> Command {
+        let q = state.joint_positions;
+        let above = self.above_cube(state);
+        let Some(targets) = self.ik(&q, IkTarget::pointing_down(above.x, above.y, above.z)) else {
+            return self.release(&q);
+        };
+        let close = (state.ef_pose.translation.vector - above).norm() < 0.01;
+        self.phase = if close {
+            Phase::Descend { steps: steps + 1 }
+        } else {
+            Phase::Approach { steps: steps + 1 }
+        };
+        if steps >= self.config.reach_timeout_steps {
+            return self.release(&q);
         }
+        Command {
+            joint_targets: targets,
+            magnet: 0,
+        }
+    }
+
+    /// Descends onto the cube; once it is held, lifts it and starts a manoeuvre of random
+    /// length. Gives up (releases) on timeout or when IK fails.
+    fn descend(&mut self, state: &SimState, steps: u32) -> Command {
+        let q = state.joint_positions;
+        if state.holding {
+            let (lo, hi) = self.config.manoeuvre_steps;
+            let remaining = self.rng.random_range(lo..=hi);
+            self.phase = Phase::Manoeuvre { remaining };
+            let above = self.above_cube(state);
+            let lift = self.ik(&q, IkTarget::pointing_down(above.x, above.y, above.z));
+            return Command {
+                joint_targets: lift.unwrap_or(q),
+                magnet: 0,
+            };
+        }
+        if steps >= self.config.reach_timeout_steps {
+            return self.release(&q);
+        }
+        let cube = state.cube_pose.translation.vector;
+        let half = self.config.cube_size / 2.0;
+        let touch = IkTarget::pointing_down(cube.x, cube.y, cube.z + half + 0.005);
+        let Some(targets) = self.ik(&q, touch) else {
+            return self.release(&q);
+        };
+        self.phase = Phase::Descend { steps: steps + 1 };
+        Command {
+            joint_targets: targets,
+            magnet: 0,
+        }
+    }
+
+    /// Random moves over the table while holding; when they are done, picks a release
+    /// point and starts placing the cube there.
+    fn manoeuvre(&mut self, state: &SimState, remaining: u32) -> Command {
+        let q = state.joint_positions;
+        if !state.holding {
+            return self.release(&q);
+        }
+        if remaining == 0 {
+            let ([cx, cy], [hx, hy]) = self.config.table_area;
+            let x = cx + self.rng.random_range(-0.8..=0.8) * hx;
+            let y = cy + self.rng.random_range(-0.8..=0.8) * hy;
+            self.phase = Phase::Place { steps: 0, x, y };
+            return self.place_command(&q, x, y);
+        }
+        self.phase = Phase::Manoeuvre {
+            remaining: remaining - 1,
+        };
+        let targets = self.random_near(&q, self.config.manoeuvre_sigma, true);
+        Command {
+            joint_targets: targets,
+            magnet: 0,
+        }
+    }
+
+    /// Carries the cube to its release point (x, y) and releases it on arrival, when it
+    /// was lost, or on timeout.
+    fn place(&mut self, state: &SimState, steps: u32, x: f64, y: f64) -> Command {
+        let q = state.joint_positions;
+        let target = self.release_pose(x, y).position;
+        let arrived = (state.ef_pose.translation.vector - target.coords).norm() < 0.01
+            && state.joint_velocities.iter().all(|v| v.abs() < 0.05);
+        if !state.holding || arrived || steps >= self.config.place_timeout_steps {
+            return self.release(&q);
+        }
+        self.phase = Phase::Place {
+            steps: steps + 1,
+            x,
+            y,
+        };
+        self.place_command(&q, x, y)
     }
 
     /// Pose of ef that holds the cube `release_height` above the table at (x, y).

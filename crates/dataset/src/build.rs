@@ -162,10 +162,7 @@ struct StepReader<'a> {
 
 impl StepReader<'_> {
     fn content(&self, problem: String) -> DatasetError {
-        DatasetError::Content {
-            bag: self.bag.clone(),
-            problem,
-        }
+        content_error(&self.bag, problem)
     }
 
     fn add(&mut self, raw: &RawMessage) -> Result<(), DatasetError> {
@@ -279,14 +276,21 @@ pub(crate) fn hash_file(path: &Path) -> Result<String, DatasetError> {
     Ok(hasher.finalize().to_hex().to_string())
 }
 
-/// Builds the transitions of one bag. `expected` refuses a bag of the other experiment;
-/// `None` accepts either and reports which in [`Dataset::experiment`].
-pub fn from_bag(
+/// A [`DatasetError::Content`] naming `bag`.
+fn content_error(bag: &Path, problem: String) -> DatasetError {
+    DatasetError::Content {
+        bag: bag.to_owned(),
+        problem,
+    }
+}
+
+/// Refuses early, before decoding millions of messages, a bag whose own record says it
+/// holds the other experiment.
+fn refuse_recorded_experiment(
+    reader: &BagReader,
     bag: &Path,
     expected: Option<Experiment>,
-    action_source: ActionSource,
-) -> Result<Dataset, DatasetError> {
-    let reader = BagReader::open(bag)?;
+) -> Result<(), DatasetError> {
     if let (Some(expected), Some(label)) =
         (expected, reader.custom_data().get(bag_keys::EXPERIMENT))
     {
@@ -303,8 +307,14 @@ pub fn from_bag(
             });
         }
     }
+    Ok(())
+}
+
+/// Every complete step of the bag in stamp order; refuses a bag missing a topic or with
+/// an incomplete step (except the last one of a bag cut short, which is dropped).
+fn read_steps(reader: &BagReader, bag: &Path) -> Result<Vec<Step>, DatasetError> {
     let mut steps = StepReader {
-        reader: &reader,
+        reader,
         bag: bag.to_owned(),
         pending: BTreeMap::new(),
         steps: Vec::new(),
@@ -312,17 +322,13 @@ pub fn from_bag(
     for raw in reader.messages() {
         steps.add(&raw?)?;
     }
-    let content = |problem: String| DatasetError::Content {
-        bag: bag.to_owned(),
-        problem,
-    };
     for topic in STEP_TOPICS {
         if !reader
             .topics()
             .iter()
             .any(|t| t.name == topic && t.message_count > 0)
         {
-            return Err(content(format!("no messages on {topic}")));
+            return Err(content_error(bag, format!("no messages on {topic}")));
         }
     }
     let StepReader {
@@ -342,16 +348,104 @@ pub fn from_bag(
             );
             continue;
         }
-        return Err(content(format!(
-            "step at stamp {stamp} ns has no message on {}",
-            partial.missing().join(", ")
-        )));
+        return Err(content_error(
+            bag,
+            format!(
+                "step at stamp {stamp} ns has no message on {}",
+                partial.missing().join(", ")
+            ),
+        ));
     }
+    Ok(all)
+}
+
+/// Whether `next` follows `now` as a transition: `Ok(false)` at the reset between
+/// episodes, an error for a gap in stamps or a hole in the episode/step counters.
+fn is_transition(bag: &Path, now: &Step, next: &Step, period: u64) -> Result<bool, DatasetError> {
+    let dt = next.stamp - now.stamp;
+    if dt.abs_diff(period) > period / 100 + 1 {
+        return Err(content_error(
+            bag,
+            format!(
+                "gap on {}: stamp {} ns follows {} ns, expected a step of {period} ns",
+                topics::JOINT_STATES,
+                next.stamp,
+                now.stamp
+            ),
+        ));
+    }
+    if next.episode != now.episode {
+        if next.step != 0 || next.episode != now.episode + 1 {
+            return Err(content_error(
+                bag,
+                format!(
+                    "{} at stamp {} ns: episode {} step {} follows episode {} step {}",
+                    topics::ACTION,
+                    next.stamp,
+                    next.episode,
+                    next.step,
+                    now.episode,
+                    now.step
+                ),
+            ));
+        }
+        // The reset between episodes is not a transition.
+        return Ok(false);
+    }
+    if next.step != now.step + 1 {
+        return Err(content_error(
+            bag,
+            format!(
+                "{} at stamp {} ns: step {} follows step {} in episode {}",
+                topics::ACTION,
+                next.stamp,
+                next.step,
+                now.step,
+                now.episode
+            ),
+        ));
+    }
+    Ok(true)
+}
+
+/// Appends the row of the transition `now` → `next` to `data`.
+fn push_transition(data: &mut Dataset, now: &Step, next: &Step, action_source: ActionSource) {
+    let experiment = data.experiment;
+    now.values.state(experiment, &mut data.states);
+    next.values.state(experiment, &mut data.next_states);
+    match action_source {
+        ActionSource::Realized => data
+            .actions
+            .extend((0..7).map(|j| (next.values.theta[j] - now.values.theta[j]) as f32)),
+        ActionSource::Commanded => data.actions.extend(now.commanded.iter().map(|&v| v as f32)),
+    }
+    if experiment == Experiment::Exp2 {
+        data.actions.push(now.magnet_command as f32);
+    }
+    data.episodes.push(now.episode);
+    data.holding.push(now.holding as u8);
+    data.steps.push(now.step);
+    data.stamps_ns.push(now.stamp);
+}
+
+/// Builds the transitions of one bag. `expected` refuses a bag of the other experiment;
+/// `None` accepts either and reports which in [`Dataset::experiment`].
+pub fn from_bag(
+    bag: &Path,
+    expected: Option<Experiment>,
+    action_source: ActionSource,
+) -> Result<Dataset, DatasetError> {
+    let reader = BagReader::open(bag)?;
+    refuse_recorded_experiment(&reader, bag, expected)?;
+    let all = read_steps(&reader, bag)?;
     if all.len() < 2 {
-        return Err(content(format!(
-            "{} complete steps; need at least 2 for one transition",
-            all.len()
-        )));
+        return Err(content_error(
+            bag,
+            format!(
+                "{} complete steps; need at least 2 for one transition",
+                all.len()
+            ),
+        ));
     }
     let (experiment, how) = experiment_of(&reader, &all);
     if let Some(expected) = expected
@@ -376,55 +470,9 @@ pub fn from_bag(
     data.stamps_ns.reserve(all.len());
     for pair in all.windows(2) {
         let (now, next) = (&pair[0], &pair[1]);
-        let dt = next.stamp - now.stamp;
-        if dt.abs_diff(period) > period / 100 + 1 {
-            return Err(content(format!(
-                "gap on {}: stamp {} ns follows {} ns, expected a step of {period} ns",
-                topics::JOINT_STATES,
-                next.stamp,
-                now.stamp
-            )));
+        if is_transition(bag, now, next, period)? {
+            push_transition(&mut data, now, next, action_source);
         }
-        if next.episode != now.episode {
-            if next.step != 0 || next.episode != now.episode + 1 {
-                return Err(content(format!(
-                    "{} at stamp {} ns: episode {} step {} follows episode {} step {}",
-                    topics::ACTION,
-                    next.stamp,
-                    next.episode,
-                    next.step,
-                    now.episode,
-                    now.step
-                )));
-            }
-            // The reset between episodes is not a transition.
-            continue;
-        }
-        if next.step != now.step + 1 {
-            return Err(content(format!(
-                "{} at stamp {} ns: step {} follows step {} in episode {}",
-                topics::ACTION,
-                next.stamp,
-                next.step,
-                now.step,
-                now.episode
-            )));
-        }
-        now.values.state(experiment, &mut data.states);
-        next.values.state(experiment, &mut data.next_states);
-        match action_source {
-            ActionSource::Realized => data
-                .actions
-                .extend((0..7).map(|j| (next.values.theta[j] - now.values.theta[j]) as f32)),
-            ActionSource::Commanded => data.actions.extend(now.commanded.iter().map(|&v| v as f32)),
-        }
-        if experiment == Experiment::Exp2 {
-            data.actions.push(now.magnet_command as f32);
-        }
-        data.episodes.push(now.episode);
-        data.holding.push(now.holding as u8);
-        data.steps.push(now.step);
-        data.stamps_ns.push(now.stamp);
     }
     data.sources.push(BagSource {
         path: bag.display().to_string(),

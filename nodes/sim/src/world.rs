@@ -13,10 +13,12 @@ use rapier3d::prelude::{
 use crate::servo::ServoLimits;
 use crate::{LinkCylinders, MAGNET_LINK, SimConfig, SimError, Simulator};
 
+/// The kinematic rapier body of one arm link, placed from forward kinematics each substep.
 #[derive(Clone)]
 pub(crate) struct LinkBody {
     /// Index of the link in `ArmModel::link_poses` order.
     pub(crate) chain_index: usize,
+    /// The link's rapier body.
     pub(crate) body: RigidBodyHandle,
 }
 

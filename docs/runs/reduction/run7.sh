@@ -4,7 +4,8 @@
 # 95 % of the training rows and compared on the last 5 % (never the test fold); the best
 # one is kept. exp1: the three seeds of run4.sh/run5.sh; exp2: seed 0 of run5.sh, then the
 # reduced unfactored FM (which `determined` equals for a head driven by every action) on
-# seeds 1 and 2 beside run6.sh's full FMs.
+# seeds 1 and 2 beside run6.sh's full FMs (seed 2 was stopped unfinished at the end of
+# the session).
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 B=${CAUSAL_ARM:-target/release/causal-arm}

@@ -37,12 +37,15 @@ impl std::fmt::Display for Experiment {
     }
 }
 
-/// Size presets.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Size presets: the dataset a run generates ([`RunPlan::for_profile`]) and the epochs the
+/// trainer gives each network; one name, so `--profile quick` means the same everywhere.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Profile {
-    /// The paper's protocol: 500,000 steps (exp 1); 4,000 episodes × 500 (exp 2).
+    /// The paper's protocol: 500,000 steps (exp 1), 4,000 episodes × 500 (exp 2); FM 60
+    /// (exp 1) / 100 (exp 2) epochs, IM 1,000, base IM 100, pre-network 4,000.
     Paper,
-    /// A demo that runs in about a minute.
+    /// A demo: a dataset in about a minute, a few epochs of each network.
     Quick,
 }
 

@@ -18,10 +18,11 @@ pub mod serve;
 pub mod structure;
 
 pub use causal_arm_mlp::LrSchedule;
+pub use causal_arm_protocol::Profile;
 pub use cv::cross_validate;
 pub use error::TrainError;
 pub use model_file::{LoadedModel, ModelMeta, load_model, save_model};
-pub use options::{ModelKind, Profile, TrainOptions};
+pub use options::{ModelKind, TrainOptions};
 pub use report::{
     CurvePoint, Figure, FoldFigure, KindReport, ProblemInfo, RunRecord, Selection, paper_figure,
 };

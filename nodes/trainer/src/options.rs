@@ -1,11 +1,12 @@
-//! What `causal-arm train` and the trainer node decide: the model kinds, the epoch
-//! profile and every option of a cross-validation run.
+//! What `causal-arm train` and the trainer node decide: the model kinds, the epochs of each
+//! network in a profile and every option of a cross-validation run.
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use causal_arm_dataset::Experiment;
 use causal_arm_mlp::{LrSchedule, Optimizer, TrainConfig};
+use causal_arm_protocol::Profile;
 use serde::{Deserialize, Serialize};
 
 use crate::TrainError;
@@ -68,29 +69,6 @@ impl std::str::FromStr for ModelKind {
                 "unknown model {s:?}: expected fm, im-mono, im-pre, ablation, fm-factored or all"
             )
         })
-    }
-}
-
-/// Epoch budgets: the paper's protocol, or a small one for demos and tests.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Profile {
-    /// FM 60 (exp 1) / 100 (exp 2) epochs, IM 1,000, base IM 100, pre-network 4,000.
-    Paper,
-    /// A few epochs of each, minutes on 2 cores.
-    Quick,
-}
-
-impl std::str::FromStr for Profile {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "paper" => Ok(Self::Paper),
-            "quick" => Ok(Self::Quick),
-            other => Err(format!(
-                "unknown profile {other:?}: expected paper or quick"
-            )),
-        }
     }
 }
 

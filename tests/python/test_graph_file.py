@@ -73,5 +73,5 @@ def test_a_bad_graph_file_is_named(run_cli, tmp_path):
     bad.write_text(GRAPH.read_text().replace('default = 0.35', 'default = 20.0'))
     out = run_cli("generate", "--help", env={"CAUSAL_ARM_GRAPH": str(bad)})
     assert out.returncode != 0
-    assert f"graph file {bad}" in out.stderr
+    assert f"error: graph file {bad}: node " in out.stderr, out.stderr
     assert "parameter sigma: default 20 outside its range [0, 10]" in out.stderr

@@ -92,7 +92,7 @@ impl std::fmt::Display for ParamDefault {
 }
 
 /// Why a graph file is refused.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 #[error("graph file {source_name}: {problem}")]
 pub struct GraphError {
     /// The file (or "embedded launch_scripts/graph.toml").
@@ -196,15 +196,11 @@ fn check_params<'a>(node: &str, params: impl Iterator<Item = &'a ParamDecl>) -> 
     Ok(())
 }
 
-static GRAPH: LazyLock<Result<GraphSpec, String>> =
-    LazyLock::new(|| GraphSpec::load().map_err(|e| e.to_string()));
+static GRAPH: LazyLock<Result<GraphSpec, GraphError>> = LazyLock::new(GraphSpec::load);
 
 /// The graph every program of this run uses (loaded once).
 pub fn graph() -> Result<&'static GraphSpec, GraphError> {
-    GRAPH.as_ref().map_err(|problem| GraphError {
-        source_name: std::env::var(GRAPH_ENV).unwrap_or_else(|_| "graph".into()),
-        problem: problem.clone(),
-    })
+    GRAPH.as_ref().map_err(GraphError::clone)
 }
 
 /// The embedded graph's default of run parameter `name`, as text (for `--help` defaults).

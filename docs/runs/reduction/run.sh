@@ -2,19 +2,8 @@
 # Issue 13, item 5 (state-space reduction) and the default method on the paper-profile
 # bags, part 1 (run2.sh is part 2): the runs behind docs/RESULTS.md "State-space reduction". Each step logs into this
 # directory; models go to models/ (not committed; their metrics.json are copied here).
-set -euo pipefail
-cd "$(dirname "$0")/../../.."
-B=${CAUSAL_ARM:-target/release/causal-arm}
-LOG=docs/runs/reduction
-step() { echo "==> $(date -u +%H:%M:%S) $*"; }
-train() { # out, log name, args...
-  local out=$1 name=$2; shift 2
-  step "train $name"
-  $B train "$@" --out "$out" 2> "$LOG/$name.err" | tee "$LOG/$name.txt"
-  cp "$out/metrics.json" "$LOG/$name.metrics.json"
-}
-[ -f bags/paper_exp1/metadata.yaml ] || $B generate exp1 --profile paper --seed 1 --out bags/paper_exp1
-[ -f bags/paper_exp2_mws/metadata.yaml ] || $B generate exp2 --profile paper --seed 1 --out bags/paper_exp2_mws
+source "$(dirname "$0")/_common.sh"
+paper_bags
 
 # exp1: full FM, its explanation scored against the truth, then the factored FM.
 E1="--bag bags/paper_exp1 --lr-schedule cosine --max-folds 1"

@@ -2,17 +2,7 @@
 # Second part of the reduction runs: the exp2 FM at 100 cosine epochs (the graph is read
 # from its explanation), then the reduced and factored FMs and the IMs at the epochs of
 # the full runs of run.sh; and the exp1 factored FM with 256-wide heads.
-set -euo pipefail
-cd "$(dirname "$0")/../../.."
-B=${CAUSAL_ARM:-target/release/causal-arm}
-LOG=docs/runs/reduction
-step() { echo "==> $(date -u +%H:%M:%S) $*"; }
-train() { # out, log name, args...
-  local out=$1 name=$2; shift 2
-  step "train $name"
-  $B train "$@" --out "$out" 2> "$LOG/$name.err" | tee "$LOG/$name.txt"
-  cp "$out/metrics.json" "$LOG/$name.metrics.json"
-}
+source "$(dirname "$0")/_common.sh"
 E2="--bag bags/paper_exp2_mws --lr-schedule cosine --max-folds 1"
 train models/paper_exp2_fm100 exp2_fm100 $E2 --model fm --epochs 100
 step "explain exp2 (100-epoch FM)"

@@ -2,11 +2,7 @@
 # Part 3: the figures of the exp2 claims beside the truth (Deep and Kernel SHAP runs of the
 # 100-epoch FM of run2.sh), the multi-step edges of both experiments through the chained FM
 # (k = 1..10) against the truth's horizons, and the exp2 factored FM with 256-wide heads.
-set -euo pipefail
-cd "$(dirname "$0")/../../.."
-B=${CAUSAL_ARM:-target/release/causal-arm}
-LOG=docs/runs/reduction
-step() { echo "==> $(date -u +%H:%M:%S) $*"; }
+source "$(dirname "$0")/_common.sh"
 for method in deep kernel; do
   step "explain exp2 $method"
   $B explain --model models/paper_exp2_fm100 --bag bags/paper_exp2_mws --method $method --no-pair-plots \

@@ -2,10 +2,7 @@
 # Part 4: is the exp1 factored FM's ef head worse than the full FM's, or is it seed noise?
 # Full FM and factored FM (256-wide heads), 60 cosine epochs, fold 1, paired by seed
 # (the seed draws the folds, the weights and the shuffles; seed 0 is in run.sh/run2.sh).
-set -euo pipefail
-cd "$(dirname "$0")/../../.."
-B=${CAUSAL_ARM:-target/release/causal-arm}
-LOG=docs/runs/reduction
+source "$(dirname "$0")/_common.sh"
 E1="--bag bags/paper_exp1 --lr-schedule cosine --max-folds 1 --epochs 60"
 for seed in 1 2; do
   echo "==> $(date -u +%H:%M:%S) seed $seed"

@@ -6,19 +6,8 @@
 # reduced unfactored FM (which `determined` equals for a head driven by every action) on
 # seeds 1 and 2 beside run6.sh's full FMs (seed 2 was stopped unfinished at the end of
 # the session).
-set -euo pipefail
-cd "$(dirname "$0")/../../.."
-B=${CAUSAL_ARM:-target/release/causal-arm}
-LOG=docs/runs/reduction
-step() { echo "==> $(date -u +%H:%M:%S) $*"; }
-train() { # out, log name, args...
-  local out=$1 name=$2; shift 2
-  step "train $name"
-  $B train "$@" --out "$out" 2> "$LOG/$name.err" | tee "$LOG/$name.txt"
-  cp "$out/metrics.json" "$LOG/$name.metrics.json"
-}
-[ -f bags/paper_exp1/metadata.yaml ] || $B generate exp1 --profile paper --seed 1 --out bags/paper_exp1
-[ -f bags/paper_exp2_mws/metadata.yaml ] || $B generate exp2 --profile paper --seed 1 --out bags/paper_exp2_mws
+source "$(dirname "$0")/_common.sh"
+paper_bags
 E1="--bag bags/paper_exp1 --lr-schedule cosine --max-folds 1 --epochs 60 --model fm-factored --graph $LOG/exp1_claims.json --factored-hidden 256,256,256 --factored-auxiliary auto"
 for seed in 0 1 2; do
   train models/paper_exp1_factored256_auto_s$seed exp1_factored60_w256_auto_s$seed $E1 --seed $seed

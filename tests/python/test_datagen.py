@@ -214,10 +214,13 @@ def test_sigint_mid_run_leaves_a_finalized_bag(causal_arm_bin, tmp_path, private
         ef_poses += [m for m in ef_reader.take(N=100) if isinstance(m, PoseStamped)]
         time.sleep(0.05)
     os.killpg(proc.pid, signal.SIGINT)
-    proc.communicate(timeout=120)
+    stdout, stderr = proc.communicate(timeout=120)
     topics = read_bag(out)
     n = len(topics["/joint_states"])
     assert 0 < n < 100000
+    # The launcher reports what the bag holds, not the plan, and fails the interrupted run.
+    assert f"({n} of 100000 steps over DDS" in stdout, stdout
+    assert proc.returncode == 1 and f"stopped after {n} of 100000 steps" in stderr, stderr[-2000:]
     for topic in STEP_TOPICS:
         assert len(topics[topic]) == n, topic
     assert (out / "metadata.yaml").exists()

@@ -4,7 +4,6 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -110,9 +109,7 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
             options.out.display()
         );
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    let setter = stop.clone();
-    let _ = ctrlc::set_handler(move || setter.store(true, Ordering::SeqCst));
+    let stop = causal_arm_node::runtime::stop_flag();
 
     let mut children = Vec::new();
     for (name, args) in commands {
@@ -145,12 +142,31 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     }
     let secs = start.elapsed().as_secs_f64();
     let total = options.plan.total_steps();
+    let recorded = recorded_steps(&options.out)?;
     println!(
-        "bag: {} ({total} steps over DDS in {secs:.1} s, {:.0} steps/s)",
+        "bag: {} ({recorded} of {total} steps over DDS in {secs:.1} s, {:.0} steps/s)",
         options.out.display(),
-        total as f64 / secs
+        recorded as f64 / secs
     );
+    if recorded < total {
+        bail!(
+            "the run stopped after {recorded} of {total} steps; {} holds those steps, finalized",
+            options.out.display()
+        );
+    }
     Ok(())
+}
+
+/// Steps in the finished bag: its `/babbler/action` messages, one per step (read from
+/// the bag's summary, not assumed from the plan, so an interrupted run says so).
+fn recorded_steps(bag: &std::path::Path) -> anyhow::Result<u64> {
+    let reader = causal_arm_recorder::BagReader::open(bag)
+        .with_context(|| format!("reading back the recorded bag {}", bag.display()))?;
+    Ok(reader
+        .topics()
+        .iter()
+        .find(|t| t.name == causal_arm_protocol::topics::ACTION)
+        .map_or(0, |t| t.message_count))
 }
 
 /// Shows the run's progress from the recorder's acknowledgements until the recorder

@@ -4,7 +4,8 @@
 //! a DDS context that honours `ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE` and
 //! `ROS_LOCALHOST_ONLY` ([`env`]), named QoS profiles ([`qos`]), typed parameters from
 //! `--ros-args -p name:=value` ([`params`]), logging through `tracing` that also reaches
-//! `/rosout` ([`logging`]) and sim time. [`RosNode`] bundles them so node crates stay thin.
+//! `/rosout` ([`logging`]), sim time, and one tokio runtime for signals, timers and
+//! ros2-client's spinner ([`runtime`]). [`RosNode`] bundles them so node crates stay thin.
 
 pub mod env;
 pub mod logging;
@@ -12,6 +13,7 @@ pub mod node;
 pub mod params;
 pub mod qos;
 pub mod run;
+pub mod runtime;
 
 pub use env::{DiscoveryRange, EnvError, RosEnv};
 pub use node::{NodeError, RosNode};

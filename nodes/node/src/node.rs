@@ -1,7 +1,6 @@
 //! [`RosNode`]: one ROS 2 node with everything a causal-arm node needs, built from the
 //! environment and `--ros-args`.
 
-use std::thread::JoinHandle;
 use std::time::Duration;
 
 use causal_arm_msgs::{RosMessage, RosService};
@@ -59,7 +58,7 @@ pub struct RosNode {
     remaps: Vec<(String, String)>,
     /// Always `Some` until drop, which must drop the node before joining its spinner.
     node: Option<Node>,
-    spinner: Option<JoinHandle<()>>,
+    spinner: Option<tokio::task::JoinHandle<()>>,
     _context: Context,
 }
 
@@ -107,17 +106,11 @@ impl RosNode {
                 reason: format!("{e:?}"),
             })?;
         let spinner = node.spinner().map_err(dds_err("node spinner"))?;
-        let spinner = std::thread::Builder::new()
-            .name(format!("{name}-spin"))
-            .spawn(move || {
-                if let Err(e) = smol::block_on(spinner.spin()) {
-                    tracing::error!("spinner stopped: {e:?}");
-                }
-            })
-            .map_err(|e| NodeError::Dds {
-                what: "spinner thread".into(),
-                reason: e.to_string(),
-            })?;
+        let spinner = crate::runtime::runtime().spawn(async move {
+            if let Err(e) = spinner.spin().await {
+                tracing::error!("spinner stopped: {e:?}");
+            }
+        });
         logging::attach_rosout(node.logging_handle());
         tracing::info!(
             "node {} up: domain {}, discovery {:?}, use_sim_time {}",
@@ -156,16 +149,9 @@ impl RosNode {
         timeout: Duration,
         settle: Duration,
     ) -> bool {
-        let matched = smol::block_on(smol::future::or(
-            async {
-                client.wait_for_service(self.node_ref()).await;
-                true
-            },
-            async {
-                smol::Timer::after(timeout).await;
-                false
-            },
-        ));
+        let matched =
+            crate::runtime::block_on_timeout(client.wait_for_service(self.node_ref()), timeout)
+                .is_some();
         if matched {
             std::thread::sleep(settle);
         }
@@ -209,18 +195,16 @@ impl RosNode {
         let node = self.node_ref();
         // The first match goes through ros2-client's own wait, which also registers the
         // publisher with the node's graph tracking (counting before that logs errors).
-        let matched = smol::block_on(smol::future::or(
-            async {
-                publisher.wait_for_subscription(node).await;
-                true
-            },
-            async {
-                while !gave_up() {
-                    smol::Timer::after(std::time::Duration::from_millis(20)).await;
-                }
-                false
-            },
-        ));
+        let matched = crate::runtime::block_on(async {
+            tokio::select! {
+                _ = publisher.wait_for_subscription(node) => true,
+                _ = async {
+                    while !gave_up() {
+                        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+                    }
+                } => false,
+            }
+        });
         if !matched {
             return false;
         }
@@ -343,7 +327,7 @@ impl Drop for RosNode {
         // Dropping the node signals its spinner to stop.
         drop(self.node.take());
         if let Some(handle) = self.spinner.take() {
-            let _ = handle.join();
+            let _ = crate::runtime::block_on_timeout(handle, Duration::from_secs(2));
         }
     }
 }

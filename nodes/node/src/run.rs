@@ -1,18 +1,7 @@
 //! Process-level helpers every node binary shares: clean stop on SIGINT/SIGTERM, waiting
 //! for samples without polling, and turning a node's error into a message and exit code.
 
-/// Installs a SIGINT/SIGTERM handler and returns the flag it sets, so nodes stop cleanly
-/// (the recorder finalizes its bag).
-pub fn stop_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
-    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let setter = flag.clone();
-    if let Err(e) =
-        ctrlc::set_handler(move || setter.store(true, std::sync::atomic::Ordering::SeqCst))
-    {
-        tracing::warn!("cannot install the SIGINT/SIGTERM handler: {e}");
-    }
-    flag
-}
+pub use crate::runtime::stop_flag;
 
 /// Waits up to `timeout` for the next message of `subscription` without polling: the
 /// rustdds reader wakes us as soon as a sample arrives (this is the lock-step's latency).
@@ -23,21 +12,11 @@ pub fn take_next<M: 'static + serde::de::DeserializeOwned>(
     if let Ok(Some((m, _))) = subscription.take() {
         return Some(Ok(m));
     }
-    smol::block_on(smol::future::or(
-        async {
-            Some(
-                subscription
-                    .async_take()
-                    .await
-                    .map(|(m, _)| m)
-                    .map_err(|e| anyhow::anyhow!("reading a sample: {e:?}")),
-            )
-        },
-        async {
-            smol::Timer::after(timeout).await;
-            None
-        },
-    ))
+    crate::runtime::block_on_timeout(subscription.async_take(), timeout).map(|taken| {
+        taken
+            .map(|(m, _)| m)
+            .map_err(|e| anyhow::anyhow!("reading a sample: {e:?}"))
+    })
 }
 
 /// What one turn of a service node's loop did (see [`serve_until_stopped`]).
@@ -71,10 +50,7 @@ where
     Fut: std::future::Future<Output = Served>,
 {
     while !stop.load(std::sync::atomic::Ordering::SeqCst) {
-        let turn = smol::block_on(smol::future::or(async { Some(next().await) }, async {
-            smol::Timer::after(std::time::Duration::from_millis(200)).await;
-            None
-        }));
+        let turn = crate::runtime::block_on_timeout(next(), std::time::Duration::from_millis(200));
         match turn {
             None | Some(Served::Replied) => {}
             Some(Served::ReplyNotSent) => tracing::warn!("could not send a reply"),

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use causal_arm_recorder::BagReader;
+use causal_arm_bag::BagReader;
 use serde_json::json;
 
 /// `causal-arm bag …`

@@ -102,7 +102,7 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     if !options.overwrite
-        && let Some(found) = causal_arm_recorder::existing_bag(&options.out)
+        && let Some(found) = causal_arm_bag::existing_bag(&options.out)
     {
         bail!(
             "{} already holds a bag ({found}); pass --overwrite to replace it",
@@ -160,7 +160,7 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
 /// Steps in the finished bag: its `/babbler/action` messages, one per step (read from
 /// the bag's summary, not assumed from the plan, so an interrupted run says so).
 fn recorded_steps(bag: &std::path::Path) -> anyhow::Result<u64> {
-    let reader = causal_arm_recorder::BagReader::open(bag)
+    let reader = causal_arm_bag::BagReader::open(bag)
         .with_context(|| format!("reading back the recorded bag {}", bag.display()))?;
     Ok(reader
         .topics()

@@ -6,11 +6,11 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
+use causal_arm_bag::BagReader;
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::{MessageTypeVisitor, RosMessage, visit_message_type};
 use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::time_from_ns;
-use causal_arm_recorder::BagReader;
 
 /// Arguments of `causal-arm play`.
 #[derive(Debug, clap::Args)]

@@ -10,6 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use causal_arm_babbler::{Exp1Babbler, Exp1Config, Exp2Babbler, Exp2Config};
+use causal_arm_bag::{BagError, BagOptions, BagWriter, offered_qos_yaml};
 use causal_arm_kinematics::{ArmModel, EMBEDDED_IIWA_URDF};
 use causal_arm_msgs::msg::Action;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
@@ -17,7 +18,6 @@ use causal_arm_protocol::{
     Command, Experiment, RunPlan, SimState, StepMessages, action_message, babbler_seed, bag_keys,
     sim_seed, step_messages, topics,
 };
-use causal_arm_recorder::{BagError, BagOptions, BagWriter, offered_qos_yaml};
 use causal_arm_sim::{SimConfig, SimError, Simulator};
 use thiserror::Error;
 
@@ -283,7 +283,7 @@ impl BagSink {
     }
 
     /// Finalizes the bag.
-    pub fn finish(self) -> Result<causal_arm_recorder::BagSummary, GenerateError> {
+    pub fn finish(self) -> Result<causal_arm_bag::BagSummary, GenerateError> {
         Ok(self.writer.finish()?)
     }
 }

@@ -3,11 +3,11 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use causal_arm_bag::{BagReader, RawMessage};
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_protocol::{StepMessages, bag_keys, ns_from_time, topics};
-use causal_arm_recorder::{BagReader, RawMessage};
 use nalgebra::{Quaternion, UnitQuaternion};
 
 use crate::{ActionSource, Dataset, DatasetError, Experiment, state_names};

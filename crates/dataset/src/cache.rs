@@ -64,7 +64,7 @@ impl Cache {
         expected: Option<Experiment>,
         action: ActionSource,
     ) -> Result<(Dataset, CacheOutcome), DatasetError> {
-        let reader = causal_arm_recorder::BagReader::open(bag)?;
+        let reader = causal_arm_bag::BagReader::open(bag)?;
         let hash = hash_file(reader.path())?;
         drop(reader);
         let file = self.file_for(&hash, action);

@@ -172,7 +172,7 @@ impl Dataset {
 pub enum DatasetError {
     /// The bag could not be read.
     #[error(transparent)]
-    Bag(#[from] causal_arm_recorder::BagError),
+    Bag(#[from] causal_arm_bag::BagError),
     /// The bag's content breaks the step protocol (gap, missing topic, bad message).
     #[error("{bag}: {problem}")]
     Content {

@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use causal_arm_bag::{BagOptions, BagReader, BagWriter, RawMessage, offered_qos_yaml};
 use causal_arm_datagen::{GenerateOptions, generate};
 use causal_arm_dataset::{
     ActionSource, Cache, CacheOutcome, DatasetError, Experiment, from_bag, load_bags, state_names,
@@ -11,7 +12,6 @@ use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_protocol::RunPlan;
 use causal_arm_protocol::topics;
-use causal_arm_recorder::{BagOptions, BagReader, BagWriter, RawMessage, offered_qos_yaml};
 
 fn tempdir(name: &str) -> PathBuf {
     let dir =

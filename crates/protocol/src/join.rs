@@ -21,6 +21,47 @@ pub trait StepParts: Default {
     }
 }
 
+/// Declares a [`StepParts`] struct: one `Option` field per topic, `missing()` listing the
+/// topics of the empty ones in declaration order.
+///
+/// ```
+/// causal_arm_protocol::step_parts! {
+///     /// What a consumer needs of one step.
+///     pub struct Needed {
+///         joint_states: Vec<f64> = "/joint_states",
+///         magnet: bool = "/magnet/state",
+///     }
+/// }
+/// use causal_arm_protocol::join::StepParts;
+/// let parts = Needed { magnet: Some(true), ..Default::default() };
+/// assert_eq!(parts.missing(), vec!["/joint_states"]);
+/// ```
+#[macro_export]
+macro_rules! step_parts {
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident {
+            $($(#[$field_meta:meta])* $field:ident: $ty:ty = $topic:expr),* $(,)?
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Default)]
+        $vis struct $name {
+            $($(#[$field_meta])* #[doc = concat!("The part from `", stringify!($field), "`.")] pub $field: Option<$ty>,)*
+        }
+
+        impl $crate::join::StepParts for $name {
+            fn missing(&self) -> Vec<&'static str> {
+                let mut missing = Vec::new();
+                $(if self.$field.is_none() {
+                    missing.push($topic);
+                })*
+                missing
+            }
+        }
+    };
+}
+
 /// Why a sample was not joined.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum Refusal {
@@ -174,22 +215,10 @@ impl<P: StepParts> StepJoiner<P> {
 mod tests {
     use super::*;
 
-    #[derive(Debug, Default, PartialEq)]
-    struct Two {
-        a: Option<u32>,
-        b: Option<u32>,
-    }
-
-    impl StepParts for Two {
-        fn missing(&self) -> Vec<&'static str> {
-            let mut m = Vec::new();
-            if self.a.is_none() {
-                m.push("/a");
-            }
-            if self.b.is_none() {
-                m.push("/b");
-            }
-            m
+    crate::step_parts! {
+        struct Two {
+            a: u32 = "/a",
+            b: u32 = "/b",
         }
     }
 
@@ -221,7 +250,13 @@ mod tests {
         let mut j = StepJoiner::<Two>::new();
         j.insert("/a", 10, put_a(1)).unwrap();
         let refused = j.insert("/a", 10, put_a(99)).unwrap_err();
-        assert_eq!(refused, Refusal::Duplicate { topic: "/a", stamp: 10 });
+        assert_eq!(
+            refused,
+            Refusal::Duplicate {
+                topic: "/a",
+                stamp: 10
+            }
+        );
         j.insert("/b", 10, put_b(1)).unwrap();
         assert_eq!(j.pop_complete(true).unwrap().1.a, Some(1));
         assert_eq!(j.counts().duplicate, 1);
@@ -235,7 +270,10 @@ mod tests {
         j.pop_complete(true).unwrap();
         for stamp in [10, 3] {
             let refused = j.insert("/a", stamp, put_a(5)).unwrap_err();
-            assert!(matches!(refused, Refusal::Stale { last: 10, .. }), "{refused}");
+            assert!(
+                matches!(refused, Refusal::Stale { last: 10, .. }),
+                "{refused}"
+            );
         }
         assert_eq!(j.pending(), 0);
         assert_eq!(j.counts().stale, 2);
@@ -261,6 +299,9 @@ mod tests {
         j.insert("/b", 20, put_b(2)).unwrap();
         assert!(j.take_if_complete(10).is_none());
         assert_eq!(j.take_if_complete(20).unwrap().a, Some(2));
-        assert_eq!(j.into_pending().keys().copied().collect::<Vec<_>>(), vec![10]);
+        assert_eq!(
+            j.into_pending().keys().copied().collect::<Vec<_>>(),
+            vec![10]
+        );
     }
 }

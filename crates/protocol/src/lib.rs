@@ -13,6 +13,7 @@
 
 pub mod experiment;
 pub mod graph;
+pub mod join;
 pub mod messages;
 pub mod scene;
 pub mod step;
@@ -20,6 +21,7 @@ pub mod topics;
 
 pub use experiment::{Experiment, Profile, RunPlan, babbler_seed, bag_keys, sim_seed};
 pub use graph::{GraphSpec, NodeDecl, ParamDecl, ParamDefault, graph};
+pub use join::{JoinCounts, Refusal, StepJoiner, StepParts, fill};
 pub use messages::{
     StateFromMessagesError, StepMessages, action_message, state_from_messages, step_messages,
 };

@@ -49,7 +49,7 @@ pub enum TruthError {
     },
     /// The bag could not be read.
     #[error(transparent)]
-    Read(#[from] causal_arm_recorder::BagError),
+    Read(#[from] causal_arm_bag::BagError),
     /// The simulator refused its settings or a command.
     #[error(transparent)]
     Sim(#[from] causal_arm_sim::SimError),

@@ -4,10 +4,10 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use causal_arm_bag::BagReader;
 use causal_arm_msgs::msg::Action;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_protocol::{Command, Experiment, bag_keys, ns_from_time, topics};
-use causal_arm_recorder::BagReader;
 
 use crate::TruthError;
 

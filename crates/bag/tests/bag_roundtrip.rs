@@ -1,9 +1,9 @@
 //! Bags written by BagWriter read back identically; bad situations give clear errors.
 
+use causal_arm_bag::{BagError, BagOptions, BagReader, BagWriter, offered_qos_yaml};
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::Action;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
-use causal_arm_recorder::{BagError, BagOptions, BagReader, BagWriter, offered_qos_yaml};
 
 fn sample(i: u64) -> (JointState, PoseStamped, Action) {
     let mut js = JointState::default();
@@ -26,7 +26,7 @@ fn sample(i: u64) -> (JointState, PoseStamped, Action) {
     (js, pose, action)
 }
 
-fn write_bag(dir: &std::path::Path, n: u64, chunk: u64) -> causal_arm_recorder::BagSummary {
+fn write_bag(dir: &std::path::Path, n: u64, chunk: u64) -> causal_arm_bag::BagSummary {
     let mut w = BagWriter::create(
         dir,
         BagOptions {

@@ -101,6 +101,12 @@ pub enum GenerateError {
     /// Writing the bag failed.
     #[error(transparent)]
     Bag(#[from] BagError),
+    /// The graph's transport failed: a message could not be sent, or no answer came.
+    #[error("{0}")]
+    Transport(String),
+    /// SIGINT/SIGTERM asked the run to stop; not a failure.
+    #[error("stopped on request")]
+    Stopped,
 }
 
 /// What a run wrote.
@@ -193,43 +199,53 @@ pub fn validate(options: &GenerateOptions) -> Result<(), GenerateError> {
             options.plan.episodes, options.plan.steps_per_episode
         )));
     }
-    let sim = Simulator::new(SimConfig {
-        seed: sim_seed(options.seed),
-        ..options.sim.clone()
-    })?;
+    let sim = simulator(options)?;
     Babbler::new(options, sim.model())?;
     Ok(())
 }
 
-/// Runs the experiment, feeding every message to `sink`; `progress(done, total)` is called
-/// after every step.
-pub fn run(
-    options: &GenerateOptions,
+/// Where each step's command comes from: the babbler in this process (`generate`), or the
+/// babbler node's answer over DDS (the simulator node).
+pub trait CommandSource {
+    /// A new episode begins (called before every episode but the first).
+    fn new_episode(&mut self);
+    /// The command answering `state`, step `k` of its episode.
+    fn command(&mut self, state: &SimState, k: u64) -> Result<Command, GenerateError>;
+}
+
+impl CommandSource for Babbler {
+    fn new_episode(&mut self) {
+        self.reset();
+    }
+
+    fn command(&mut self, state: &SimState, _k: u64) -> Result<Command, GenerateError> {
+        Ok(self.next(state))
+    }
+}
+
+/// The one step loop of every run, in process or over DDS: for each step, the state goes
+/// to `sink`, `commands` answers it, the answer goes to `sink`, and `sim` executes it.
+/// `progress(done, total)` is called after every step. Returns the steps run.
+pub fn drive(
+    plan: &RunPlan,
+    sim: &mut Simulator,
+    commands: &mut dyn CommandSource,
     sink: &mut dyn StepSink,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<u64, GenerateError> {
-    validate(options)?;
-    let mut sim = Simulator::new(SimConfig {
-        seed: sim_seed(options.seed),
-        ..options.sim.clone()
-    })?;
     let model = sim.model().clone();
-    let mut babbler = Babbler::new(options, &model)?;
     let joint_names = model.joint_names();
-    sink.robot_description(&RosString {
-        data: EMBEDDED_IIWA_URDF.to_owned(),
-    })?;
-    let total = options.plan.total_steps();
+    let total = plan.total_steps();
     let mut done = 0;
-    for episode in 0..options.plan.episodes {
+    for episode in 0..plan.episodes {
         if episode > 0 {
             sim.reset_episode();
-            babbler.reset();
+            commands.new_episode();
         }
         let mut state = sim.state();
-        for k in 0..options.plan.steps_per_episode {
+        for k in 0..plan.steps_per_episode {
             sink.state(state.stamp_ns, &step_messages(&state, &joint_names))?;
-            let command = babbler.next(&state);
+            let command = commands.command(&state, k)?;
             sink.action(state.stamp_ns, &action_message(&state, &command, k))?;
             state = sim.step(&command)?;
             done += 1;
@@ -237,6 +253,30 @@ pub fn run(
         }
     }
     Ok(done)
+}
+
+/// The simulator of a run: `options.sim` seeded from the run's seed.
+pub fn simulator(options: &GenerateOptions) -> Result<Simulator, GenerateError> {
+    Ok(Simulator::new(SimConfig {
+        seed: sim_seed(options.seed),
+        ..options.sim.clone()
+    })?)
+}
+
+/// Runs the experiment in this process, feeding every message to `sink`; `progress(done,
+/// total)` is called after every step.
+pub fn run(
+    options: &GenerateOptions,
+    sink: &mut dyn StepSink,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<u64, GenerateError> {
+    validate(options)?;
+    let mut sim = simulator(options)?;
+    let mut babbler = Babbler::new(options, sim.model())?;
+    sink.robot_description(&RosString {
+        data: EMBEDDED_IIWA_URDF.to_owned(),
+    })?;
+    drive(&options.plan, &mut sim, &mut babbler, sink, progress)
 }
 
 /// Writes a run into a bag.

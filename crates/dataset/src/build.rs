@@ -1,13 +1,14 @@
 //! Joining a bag's messages by stamp into simulator steps, then steps into transitions.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use causal_arm_bag::{BagReader, RawMessage};
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
-use causal_arm_protocol::{StepMessages, bag_keys, ns_from_time, topics};
+use causal_arm_protocol::{
+    StepJoiner, StepMessages, StepParts, bag_keys, fill, ns_from_time, topics,
+};
 use nalgebra::{Quaternion, UnitQuaternion};
 
 use crate::{ActionSource, Dataset, DatasetError, Experiment, state_names};
@@ -23,45 +24,23 @@ pub struct BagSource {
     pub rows: usize,
 }
 
-/// Topics a step needs, in the order used in messages.
-const STEP_TOPICS: [&str; 6] = [
-    topics::JOINT_STATES,
-    topics::EF_POSE,
-    topics::OBJECT_POSE,
-    topics::OBJECT_COLOR,
-    topics::MAGNET_STATE,
-    topics::ACTION,
-];
-
-/// What one simulator step contributed, kept compact (2M steps for the paper's exp 2).
-#[derive(Debug, Clone, Default)]
-struct Partial {
-    theta: Option<[f64; 7]>,
-    ef: Option<[f64; 6]>,
-    object: Option<[f64; 6]>,
-    colour: Option<[f32; 3]>,
-    /// (on, holding).
-    magnet: Option<(bool, bool)>,
-    action: Option<(u32, u32, [f64; 7], i8)>,
+causal_arm_protocol::step_parts! {
+    /// What one simulator step contributed, kept compact (2M steps for the paper's exp 2).
+    struct Partial {
+        theta: [f64; 7] = topics::JOINT_STATES,
+        ef: [f64; 6] = topics::EF_POSE,
+        object: [f64; 6] = topics::OBJECT_POSE,
+        colour: [f32; 3] = topics::OBJECT_COLOR,
+        /// (on, holding).
+        magnet: (bool, bool) = topics::MAGNET_STATE,
+        /// (episode, step, commanded deltas, magnet command).
+        action: (u32, u32, [f64; 7], i8) = topics::ACTION,
+    }
 }
 
-impl Partial {
-    fn missing(&self) -> Vec<&'static str> {
-        let present = [
-            self.theta.is_some(),
-            self.ef.is_some(),
-            self.object.is_some(),
-            self.colour.is_some(),
-            self.magnet.is_some(),
-            self.action.is_some(),
-        ];
-        STEP_TOPICS
-            .iter()
-            .zip(present)
-            .filter(|(_, p)| !p)
-            .map(|(t, _)| *t)
-            .collect()
-    }
+/// Topics a step needs, in the order used in messages.
+fn step_topics() -> Vec<&'static str> {
+    Partial::default().missing()
 }
 
 /// One complete step.
@@ -153,10 +132,14 @@ fn seven(values: &[f64], what: &str, stamp: u64) -> Result<[f64; 7], String> {
 }
 
 /// Reads one bag into steps, checking the step protocol.
+/// Files one decoded message into its step (see `StepJoiner::insert`).
+type PutPart = Box<dyn FnOnce(&mut Partial) -> bool>;
+
 struct StepReader<'a> {
     reader: &'a BagReader,
     bag: PathBuf,
-    pending: BTreeMap<u64, Partial>,
+    topics: Vec<&'static str>,
+    joiner: StepJoiner<Partial>,
     steps: Vec<Step>,
 }
 
@@ -166,74 +149,81 @@ impl StepReader<'_> {
     }
 
     fn add(&mut self, raw: &RawMessage) -> Result<(), DatasetError> {
-        let topic = raw.topic.as_str();
-        if !STEP_TOPICS.contains(&topic) {
+        let Some(topic) = self.topics.iter().copied().find(|t| *t == raw.topic) else {
             return Ok(());
-        }
-        let stamp;
-        let mut update: Box<dyn FnMut(&mut Partial) -> bool> = match topic {
+        };
+        let (stamp, put): (u64, PutPart) = match topic {
             topics::JOINT_STATES => {
                 let m: JointState = self.reader.decode(raw)?;
-                stamp = ns_from_time(&m.header.stamp);
+                let stamp = ns_from_time(&m.header.stamp);
                 let theta = seven(&m.position, "/joint_states position", stamp)
                     .map_err(|e| self.content(e))?;
-                Box::new(move |p| p.theta.replace(theta).is_some())
+                (stamp, Box::new(move |p| fill(&mut p.theta, theta)))
             }
             topics::EF_POSE | topics::OBJECT_POSE => {
                 let m: PoseStamped = self.reader.decode(raw)?;
-                stamp = ns_from_time(&m.header.stamp);
                 let pose = pose6(&m);
-                if topic == topics::EF_POSE {
-                    Box::new(move |p| p.ef.replace(pose).is_some())
+                let put: PutPart = if topic == topics::EF_POSE {
+                    Box::new(move |p| fill(&mut p.ef, pose))
                 } else {
-                    Box::new(move |p| p.object.replace(pose).is_some())
-                }
+                    Box::new(move |p| fill(&mut p.object, pose))
+                };
+                (ns_from_time(&m.header.stamp), put)
             }
             topics::OBJECT_COLOR => {
                 let m: ObjectColor = self.reader.decode(raw)?;
-                stamp = ns_from_time(&m.header.stamp);
                 let rgb = [m.color.r, m.color.g, m.color.b];
-                Box::new(move |p| p.colour.replace(rgb).is_some())
+                (
+                    ns_from_time(&m.header.stamp),
+                    Box::new(move |p| fill(&mut p.colour, rgb)),
+                )
             }
             topics::MAGNET_STATE => {
                 let m: MagnetState = self.reader.decode(raw)?;
-                stamp = ns_from_time(&m.header.stamp);
-                Box::new(move |p| p.magnet.replace((m.on, m.holding)).is_some())
+                (
+                    ns_from_time(&m.header.stamp),
+                    Box::new(move |p| fill(&mut p.magnet, (m.on, m.holding))),
+                )
             }
             _ => {
                 let m: Action = self.reader.decode(raw)?;
-                stamp = ns_from_time(&m.header.stamp);
+                let stamp = ns_from_time(&m.header.stamp);
                 let deltas = seven(&m.joint_deltas, "/babbler/action joint_deltas", stamp)
                     .map_err(|e| self.content(e))?;
                 let action = (m.episode, m.step, deltas, m.magnet);
-                Box::new(move |p| p.action.replace(action).is_some())
+                (stamp, Box::new(move |p| fill(&mut p.action, action)))
             }
         };
-        let partial = self.pending.entry(stamp).or_default();
-        if update(partial) {
+        if self.joiner.insert(topic, stamp, put).is_err() {
             return Err(self.content(format!("two {topic} messages with stamp {stamp} ns")));
         }
-        if partial.missing().is_empty() {
-            let p = self.pending.remove(&stamp).expect("just inserted");
-            let (episode, step, commanded, magnet_command) = p.action.expect("complete");
-            let (magnet_on, holding) = p.magnet.expect("complete");
-            self.steps.push(Step {
-                stamp,
-                values: StepValues {
-                    theta: p.theta.expect("complete"),
-                    ef: p.ef.expect("complete"),
-                    object: p.object.expect("complete"),
-                    colour: p.colour.expect("complete"),
-                    magnet_on,
-                },
-                holding,
-                episode,
-                step,
-                commanded,
-                magnet_command,
-            });
+        if let Some(p) = self.joiner.take_if_complete(stamp) {
+            self.steps.push(Step::from_parts(stamp, p));
         }
         Ok(())
+    }
+}
+
+impl Step {
+    /// The step of a complete `Partial`.
+    fn from_parts(stamp: u64, p: Partial) -> Self {
+        let (episode, step, commanded, magnet_command) = p.action.expect("complete");
+        let (magnet_on, holding) = p.magnet.expect("complete");
+        Self {
+            stamp,
+            values: StepValues {
+                theta: p.theta.expect("complete"),
+                ef: p.ef.expect("complete"),
+                object: p.object.expect("complete"),
+                colour: p.colour.expect("complete"),
+                magnet_on,
+            },
+            holding,
+            episode,
+            step,
+            commanded,
+            magnet_command,
+        }
     }
 }
 
@@ -316,13 +306,14 @@ fn read_steps(reader: &BagReader, bag: &Path) -> Result<Vec<Step>, DatasetError>
     let mut steps = StepReader {
         reader,
         bag: bag.to_owned(),
-        pending: BTreeMap::new(),
+        topics: step_topics(),
+        joiner: StepJoiner::new(),
         steps: Vec::new(),
     };
     for raw in reader.messages() {
         steps.add(&raw?)?;
     }
-    for topic in STEP_TOPICS {
+    for topic in step_topics() {
         if !reader
             .topics()
             .iter()
@@ -332,10 +323,11 @@ fn read_steps(reader: &BagReader, bag: &Path) -> Result<Vec<Step>, DatasetError>
         }
     }
     let StepReader {
-        pending,
+        joiner,
         steps: mut all,
         ..
     } = steps;
+    let pending = joiner.into_pending();
     all.sort_by_key(|s| s.stamp);
     let last_complete = all.last().map(|s| s.stamp).unwrap_or(0);
     for (stamp, partial) in &pending {

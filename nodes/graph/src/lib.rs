@@ -13,6 +13,9 @@
 //! `seed`, `sigma`) with `--ros-args -p name:=value`.
 
 pub mod babbler_node;
+pub mod feed;
+pub mod flow;
+pub mod parts;
 pub mod plan;
 pub mod recorder_node;
 pub mod sim_node;

@@ -3,66 +3,20 @@
 //! SIGINT/SIGTERM finalize the bag with every complete step; incomplete trailing steps
 //! are reported, not silently dropped.
 
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use causal_arm_datagen::{BagSink, StepSink, validate};
-use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
-use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
-use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
-use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{RosArgs, RosNode, qos};
-use causal_arm_protocol::{StepMessages, ns_from_time, time_from_ns, topics};
+use causal_arm_protocol::{StepJoiner, time_from_ns, topics};
 
+use crate::feed::{drain_or_wait, refusal_summary};
+use crate::parts::{RecordParts, record_feeds};
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag};
-
-#[derive(Default)]
-struct StepBuffer {
-    joint_states: Option<JointState>,
-    ef_pose: Option<PoseStamped>,
-    object_pose: Option<PoseStamped>,
-    object_color: Option<ObjectColor>,
-    magnet: Option<MagnetState>,
-    clock: Option<Clock>,
-    tf: Option<TFMessage>,
-    action: Option<Action>,
-}
-
-impl StepBuffer {
-    fn missing(&self) -> Vec<&'static str> {
-        let mut m = Vec::new();
-        if self.joint_states.is_none() {
-            m.push(topics::JOINT_STATES)
-        }
-        if self.ef_pose.is_none() {
-            m.push(topics::EF_POSE)
-        }
-        if self.object_pose.is_none() {
-            m.push(topics::OBJECT_POSE)
-        }
-        if self.object_color.is_none() {
-            m.push(topics::OBJECT_COLOR)
-        }
-        if self.magnet.is_none() {
-            m.push(topics::MAGNET_STATE)
-        }
-        if self.clock.is_none() {
-            m.push(topics::CLOCK)
-        }
-        if self.tf.is_none() {
-            m.push(topics::TF)
-        }
-        if self.action.is_none() {
-            m.push(topics::ACTION)
-        }
-        m
-    }
-}
 
 /// Runs the recorder node until every step is written or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
@@ -76,15 +30,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     validate(&run.options)?;
     let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let stop = stop_flag();
-    let recorded = qos::recorded();
-    let joint_states = node.subscription::<JointState>(topics::JOINT_STATES, recorded.clone())?;
-    let ef_pose = node.subscription::<PoseStamped>(topics::EF_POSE, recorded.clone())?;
-    let object_pose = node.subscription::<PoseStamped>(topics::OBJECT_POSE, recorded.clone())?;
-    let object_color = node.subscription::<ObjectColor>(topics::OBJECT_COLOR, recorded.clone())?;
-    let magnet = node.subscription::<MagnetState>(topics::MAGNET_STATE, recorded.clone())?;
-    let clock = node.subscription::<Clock>(topics::CLOCK, recorded.clone())?;
-    let tf = node.subscription::<TFMessage>(topics::TF, recorded.clone())?;
-    let actions = node.subscription::<Action>(topics::ACTION, recorded)?;
+    let feeds = record_feeds(&mut node, &qos::recorded())?;
     let description = node.subscription::<RosString>(topics::ROBOT_DESCRIPTION, qos::latched())?;
     let ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
 
@@ -94,66 +40,24 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         &run.options,
     )?;
     let total = run.options.plan.total_steps();
-    let mut buffers: BTreeMap<u64, StepBuffer> = BTreeMap::new();
+    let mut joiner = StepJoiner::<RecordParts>::new();
     let mut have_description = false;
     let mut written = 0u64;
     let mut last_activity = Instant::now();
     let mut result = Ok(());
     while written < total && !stop.load(Ordering::SeqCst) {
-        let mut got = false;
+        let mut arrived = drain_or_wait(&feeds, &mut joiner, Duration::from_millis(100));
         if !have_description && let Ok(Some((d, _))) = description.take() {
             sink.robot_description(&d)?;
             have_description = true;
-            got = true;
+            arrived = true;
         }
-        macro_rules! drain {
-            ($sub:expr, $field:ident, $stamp:expr) => {
-                while let Ok(Some((m, _))) = $sub.take() {
-                    got = true;
-                    let key = ns_from_time(&$stamp(&m));
-                    buffers.entry(key).or_default().$field = Some(m);
-                }
-            };
-        }
-        drain!(joint_states, joint_states, |m: &JointState| m
-            .header
-            .stamp
-            .clone());
-        drain!(ef_pose, ef_pose, |m: &PoseStamped| m.header.stamp.clone());
-        drain!(object_pose, object_pose, |m: &PoseStamped| m
-            .header
-            .stamp
-            .clone());
-        drain!(object_color, object_color, |m: &ObjectColor| m
-            .header
-            .stamp
-            .clone());
-        drain!(magnet, magnet, |m: &MagnetState| m.header.stamp.clone());
-        drain!(clock, clock, |m: &Clock| m.clock.clone());
-        drain!(tf, tf, |m: &TFMessage| m
-            .transforms
-            .first()
-            .map(|t| t.header.stamp.clone())
-            .unwrap_or_default());
-        drain!(actions, action, |m: &Action| m.header.stamp.clone());
         let mut last_written = None;
-        while have_description && let Some(entry) = buffers.first_entry() {
-            if !entry.get().missing().is_empty() {
-                break;
-            }
-            let stamp = *entry.key();
-            let b = entry.remove();
-            let messages = StepMessages {
-                joint_states: b.joint_states.expect("complete"),
-                ef_pose: b.ef_pose.expect("complete"),
-                object_pose: b.object_pose.expect("complete"),
-                object_color: b.object_color.expect("complete"),
-                magnet: b.magnet.expect("complete"),
-                clock: b.clock.expect("complete"),
-                tf: b.tf.expect("complete"),
-            };
+        // Older parts may still be in flight on another topic: write strictly in order.
+        while have_description && let Some((stamp, parts)) = joiner.pop_complete(true) {
+            let (messages, action) = parts.into_step().expect("complete");
             sink.state(stamp, &messages)?;
-            sink.action(stamp, &b.action.expect("complete"))?;
+            sink.action(stamp, &action)?;
             written += 1;
             last_written = Some(stamp);
         }
@@ -165,25 +69,21 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
                 tracing::info!("recorded {written}/{total} steps");
             }
         }
-        if got {
+        if arrived {
             last_activity = Instant::now();
-        } else {
-            if last_activity.elapsed() > timeout {
-                result = Err(anyhow::anyhow!(
-                    "nothing received for {timeout:?} after {written} of {total} steps; bag finalized with the complete steps"
-                ));
-                break;
-            }
-            std::thread::sleep(Duration::from_micros(50));
+        } else if last_activity.elapsed() > timeout {
+            result = Err(anyhow::anyhow!(
+                "nothing received for {timeout:?} after {written} of {total} steps; bag finalized with the complete steps"
+            ));
+            break;
         }
     }
-    if !buffers.is_empty() {
-        let (stamp, first) = buffers.iter().next().expect("non-empty");
+    tracing::info!("{}", refusal_summary(&feeds, &joiner));
+    if let Some((stamp, missing)) = joiner.first_missing() {
         tracing::warn!(
-            "{} incomplete step(s) not written (first at {} ns lacks {})",
-            buffers.len(),
-            stamp,
-            first.missing().join(", ")
+            "{} incomplete step(s) not written (first at {stamp} ns lacks {})",
+            joiner.pending(),
+            missing.join(", ")
         );
     }
     let summary = sink.finish()?;

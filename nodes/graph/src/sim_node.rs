@@ -1,11 +1,14 @@
-//! `causal_arm_sim`: the simulator as a ROS 2 node, stepping in lock-step with the babbler
-//! and never more than `ack_window` steps ahead of the recorder.
+//! `causal_arm_sim`: the simulator as a ROS 2 node. It runs the same step loop as
+//! `causal-arm generate` ([`causal_arm_datagen::drive`]), with DDS on both sides: states
+//! go out on the graph's topics (never more than `ack_window` steps ahead of the
+//! recorder) and each command is the babbler node's answer to that very state.
 
-use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context as _, bail};
-use causal_arm_datagen::validate;
+use anyhow::bail;
+use causal_arm_datagen::{CommandSource, GenerateError, StepSink, drive, simulator, validate};
 use causal_arm_kinematics::EMBEDDED_IIWA_URDF;
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
@@ -14,19 +17,182 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{RosArgs, RosNode, qos};
-use causal_arm_protocol::{ARM_DOF, Command, ns_from_time, sim_seed, step_messages, topics};
-use causal_arm_sim::{SimConfig, Simulator};
-use ros2_client::Publisher;
+use causal_arm_protocol::{ARM_DOF, Command, SimState, StepMessages, ns_from_time, topics};
+use ros2_client::{Publisher, Subscription};
 
+use crate::flow::AckWindow;
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag, take_next};
 
 fn publish<M: causal_arm_msgs::RosMessage>(
     p: &Publisher<M>,
     msg: M,
     topic: &str,
-) -> anyhow::Result<()> {
+) -> Result<(), GenerateError> {
     p.publish(msg)
-        .map_err(|e| anyhow::anyhow!("publishing on {topic}: {e:?}"))
+        .map_err(|e| GenerateError::Transport(format!("publishing on {topic}: {e:?}")))
+}
+
+/// The state topics as a [`StepSink`], paced by the recorder's acknowledgements.
+struct DdsStatePublisher {
+    joint_states: Publisher<JointState>,
+    ef_pose: Publisher<PoseStamped>,
+    object_pose: Publisher<PoseStamped>,
+    object_color: Publisher<ObjectColor>,
+    magnet: Publisher<MagnetState>,
+    clock: Publisher<Clock>,
+    tf: Publisher<TFMessage>,
+    description: Publisher<RosString>,
+    /// `Some` when the recorder paces the run.
+    acks: Option<(Subscription<Clock>, AckWindow)>,
+    stop: Arc<AtomicBool>,
+    last_stamp: u64,
+}
+
+impl DdsStatePublisher {
+    fn new(node: &mut RosNode, paced_by: Option<AckWindow>) -> anyhow::Result<Self> {
+        let recorded = qos::recorded();
+        let acks = match paced_by {
+            Some(window) => Some((
+                node.subscription::<Clock>(ACK_TOPIC, qos::default_reliable())?,
+                window,
+            )),
+            None => None,
+        };
+        Ok(Self {
+            joint_states: node.publisher(topics::JOINT_STATES, recorded.clone())?,
+            ef_pose: node.publisher(topics::EF_POSE, recorded.clone())?,
+            object_pose: node.publisher(topics::OBJECT_POSE, recorded.clone())?,
+            object_color: node.publisher(topics::OBJECT_COLOR, recorded.clone())?,
+            magnet: node.publisher(topics::MAGNET_STATE, recorded.clone())?,
+            clock: node.publisher(topics::CLOCK, recorded.clone())?,
+            tf: node.publisher(topics::TF, recorded)?,
+            description: node.publisher(topics::ROBOT_DESCRIPTION, qos::latched())?,
+            acks,
+            stop: stop_flag(),
+            last_stamp: 0,
+        })
+    }
+
+    fn take_acks(&mut self) {
+        if let Some((acks, window)) = &mut self.acks {
+            while let Ok(Some((ack, _))) = acks.take() {
+                window.ack(ns_from_time(&ack.clock));
+            }
+        }
+    }
+
+    /// Waits until the recorder's window lets `stamp` go out.
+    fn wait_for_window(&mut self, stamp: u64) -> Result<(), GenerateError> {
+        loop {
+            self.take_acks();
+            match &self.acks {
+                Some((_, window)) if !window.allows(stamp) => {}
+                _ => return Ok(()),
+            }
+            if self.stop.load(Ordering::SeqCst) {
+                return Err(GenerateError::Stopped);
+            }
+            std::thread::sleep(Duration::from_micros(100));
+        }
+    }
+
+    /// Waits (up to `timeout`) until the recorder acknowledged the last step published.
+    fn wait_until_recorded(&mut self, timeout: Duration) {
+        let start = Instant::now();
+        loop {
+            self.take_acks();
+            let done = match &self.acks {
+                Some((_, window)) => window.acked() == Some(self.last_stamp),
+                None => true,
+            };
+            if done || self.stop.load(Ordering::SeqCst) || start.elapsed() > timeout {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+}
+
+impl StepSink for DdsStatePublisher {
+    fn robot_description(&mut self, urdf: &RosString) -> Result<(), GenerateError> {
+        publish(&self.description, urdf.clone(), topics::ROBOT_DESCRIPTION)
+    }
+
+    fn state(&mut self, stamp_ns: u64, m: &StepMessages) -> Result<(), GenerateError> {
+        self.wait_for_window(stamp_ns)?;
+        let m = m.clone();
+        publish(&self.joint_states, m.joint_states, topics::JOINT_STATES)?;
+        publish(&self.ef_pose, m.ef_pose, topics::EF_POSE)?;
+        publish(&self.object_pose, m.object_pose, topics::OBJECT_POSE)?;
+        publish(&self.object_color, m.object_color, topics::OBJECT_COLOR)?;
+        publish(&self.magnet, m.magnet, topics::MAGNET_STATE)?;
+        publish(&self.clock, m.clock, topics::CLOCK)?;
+        publish(&self.tf, m.tf, topics::TF)?;
+        self.last_stamp = stamp_ns;
+        Ok(())
+    }
+
+    /// The babbler node published the action itself; the recorder takes it from there.
+    fn action(&mut self, _stamp_ns: u64, _action: &Action) -> Result<(), GenerateError> {
+        Ok(())
+    }
+}
+
+/// The babbler node's answers as the loop's [`CommandSource`].
+struct DdsCommands {
+    actions: Subscription<Action>,
+    timeout: Duration,
+    stop: Arc<AtomicBool>,
+}
+
+impl DdsCommands {
+    /// The action answering the state stamped `stamp`; answers to other stamps are
+    /// ignored with a warning.
+    fn answer(&self, stamp: u64) -> Result<Action, GenerateError> {
+        let asked = Instant::now();
+        loop {
+            if self.stop.load(Ordering::SeqCst) {
+                return Err(GenerateError::Stopped);
+            }
+            if asked.elapsed() > self.timeout {
+                return Err(GenerateError::Transport(format!(
+                    "no {} answering stamp {stamp} ns within {:?}",
+                    topics::ACTION,
+                    self.timeout
+                )));
+            }
+            match take_next(&self.actions, Duration::from_millis(100)) {
+                Some(Ok(a)) if ns_from_time(&a.header.stamp) == stamp => return Ok(a),
+                Some(Ok(a)) => tracing::warn!(
+                    "ignoring action stamped {} ns while waiting for {stamp} ns",
+                    ns_from_time(&a.header.stamp)
+                ),
+                Some(Err(e)) => tracing::warn!("undecodable action: {e:#}"),
+                None => {}
+            }
+        }
+    }
+}
+
+impl CommandSource for DdsCommands {
+    /// The babbler node starts its new episode itself, from the step count.
+    fn new_episode(&mut self) {}
+
+    fn command(&mut self, state: &SimState, _k: u64) -> Result<Command, GenerateError> {
+        let action = self.answer(state.stamp_ns)?;
+        let joint_targets: [f64; ARM_DOF] =
+            action.joint_targets.as_slice().try_into().map_err(|_| {
+                GenerateError::Transport(format!(
+                    "action at {} ns has {} joint targets, expected {ARM_DOF}",
+                    state.stamp_ns,
+                    action.joint_targets.len()
+                ))
+            })?;
+        Ok(Command {
+            joint_targets,
+            magnet: action.magnet,
+        })
+    }
 }
 
 /// Runs the simulator node until the run is complete or SIGINT/SIGTERM.
@@ -40,41 +206,22 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let stop = stop_flag();
 
-    let recorded = qos::recorded();
-    let joint_states = node.publisher::<JointState>(topics::JOINT_STATES, recorded.clone())?;
-    let ef_pose = node.publisher::<PoseStamped>(topics::EF_POSE, recorded.clone())?;
-    let object_pose = node.publisher::<PoseStamped>(topics::OBJECT_POSE, recorded.clone())?;
-    let object_color = node.publisher::<ObjectColor>(topics::OBJECT_COLOR, recorded.clone())?;
-    let magnet = node.publisher::<MagnetState>(topics::MAGNET_STATE, recorded.clone())?;
-    let clock = node.publisher::<Clock>(topics::CLOCK, recorded.clone())?;
-    let tf = node.publisher::<TFMessage>(topics::TF, recorded.clone())?;
-    let description = node.publisher::<RosString>(topics::ROBOT_DESCRIPTION, qos::latched())?;
-    let actions = node.subscription::<Action>(topics::ACTION, recorded.clone())?;
-    let acks = node.subscription::<Clock>(ACK_TOPIC, qos::default_reliable())?;
-
-    let mut sim = Simulator::new(SimConfig {
-        seed: sim_seed(run.options.seed),
-        ..run.options.sim.clone()
+    let pacing = wait_for_recorder.then(|| AckWindow::new(window, run.step_ns()));
+    let mut states = DdsStatePublisher::new(&mut node, pacing)?;
+    let mut commands = DdsCommands {
+        actions: node.subscription::<Action>(topics::ACTION, qos::recorded())?,
+        timeout,
+        stop: stop.clone(),
+    };
+    let mut sim = simulator(&run.options)?;
+    states.robot_description(&RosString {
+        data: EMBEDDED_IIWA_URDF.to_owned(),
     })?;
-    let model = sim.model().clone();
-    let joint_names = model.joint_names();
-    publish(
-        &description,
-        RosString {
-            data: EMBEDDED_IIWA_URDF.to_owned(),
-        },
-        topics::ROBOT_DESCRIPTION,
-    )?;
 
     // Wait until the babbler (and the recorder) subscribe, then let their side settle.
     let needed = if wait_for_recorder { 2 } else { 1 };
-    if !node.wait_for_subscribers(
-        &joint_states,
-        needed,
-        timeout,
-        Duration::from_millis(500),
-        &stop,
-    ) {
+    let settle = Duration::from_millis(500);
+    if !node.wait_for_subscribers(&states.joint_states, needed, timeout, settle, &stop) {
         if stop.load(Ordering::SeqCst) {
             return Ok(());
         }
@@ -83,103 +230,21 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             topics::JOINT_STATES
         );
     }
+    let plan = &run.options.plan;
     tracing::info!(
         "simulator starting: {} × {} steps",
-        run.options.plan.episodes,
-        run.options.plan.steps_per_episode
+        plan.episodes,
+        plan.steps_per_episode
     );
-
-    let step_ns = run.step_ns();
-    let mut acked: Option<u64> = None;
-    let mut last_stamp = 0;
-    for episode in 0..run.options.plan.episodes {
-        if episode > 0 {
-            sim.reset_episode();
-        }
-        let mut state = sim.state();
-        for _ in 0..run.options.plan.steps_per_episode {
-            // Flow control: stay within `window` steps of the recorder.
-            while wait_for_recorder && !stop.load(Ordering::SeqCst) {
-                while let Some((ack, _)) = acks.take().ok().flatten() {
-                    acked = Some(acked.unwrap_or(0).max(ns_from_time(&ack.clock)));
-                }
-                let lag_ok = match acked {
-                    Some(a) => (state.stamp_ns as f64 - a as f64) < window as f64 * step_ns - 1.0,
-                    None => (state.stamp_ns as f64) < window as f64 * step_ns - 1.0,
-                };
-                if lag_ok {
-                    break;
-                }
-                if stop.load(Ordering::SeqCst) {
-                    return Ok(());
-                }
-                std::thread::sleep(Duration::from_micros(100));
-            }
-            let m = step_messages(&state, &joint_names);
-            publish(&joint_states, m.joint_states, topics::JOINT_STATES)?;
-            publish(&ef_pose, m.ef_pose, topics::EF_POSE)?;
-            publish(&object_pose, m.object_pose, topics::OBJECT_POSE)?;
-            publish(&object_color, m.object_color, topics::OBJECT_COLOR)?;
-            publish(&magnet, m.magnet, topics::MAGNET_STATE)?;
-            publish(&clock, m.clock, topics::CLOCK)?;
-            publish(&tf, m.tf, topics::TF)?;
-            last_stamp = state.stamp_ns;
-            // Wait for the babbler's answer to exactly this state.
-            let asked = Instant::now();
-            let action = loop {
-                if stop.load(Ordering::SeqCst) {
-                    return Ok(());
-                }
-                if asked.elapsed() > timeout {
-                    bail!(
-                        "no {} answering stamp {} ns within {timeout:?}",
-                        topics::ACTION,
-                        state.stamp_ns
-                    );
-                }
-                match take_next(&actions, Duration::from_millis(100)) {
-                    Some(Ok(a)) if ns_from_time(&a.header.stamp) == state.stamp_ns => break a,
-                    Some(Ok(a)) => tracing::warn!(
-                        "ignoring action stamped {} ns while waiting for {} ns",
-                        ns_from_time(&a.header.stamp),
-                        state.stamp_ns
-                    ),
-                    Some(Err(e)) => tracing::warn!("undecodable action: {e:#}"),
-                    None => {}
-                }
-            };
-            let targets: [f64; ARM_DOF] =
-                action
-                    .joint_targets
-                    .as_slice()
-                    .try_into()
-                    .with_context(|| {
-                        format!(
-                            "action at {} ns has {} joint targets, expected {ARM_DOF}",
-                            state.stamp_ns,
-                            action.joint_targets.len()
-                        )
-                    })?;
-            state = sim.step(&Command {
-                joint_targets: targets,
-                magnet: action.magnet,
-            })?;
-        }
+    match drive(plan, &mut sim, &mut commands, &mut states, &mut |_, _| {}) {
+        Ok(_) => {}
+        Err(GenerateError::Stopped) => return Ok(()),
+        Err(e) => return Err(e.into()),
     }
-    // Wait until the recorder has everything.
-    let start = Instant::now();
-    while wait_for_recorder && acked != Some(last_stamp) {
-        while let Some((ack, _)) = acks.take().ok().flatten() {
-            acked = Some(acked.unwrap_or(0).max(ns_from_time(&ack.clock)));
-        }
-        if stop.load(Ordering::SeqCst) || start.elapsed() > timeout {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    states.wait_until_recorded(timeout);
     tracing::info!(
         "simulator done at sim time {:.3} s",
-        last_stamp as f64 * 1e-9
+        states.last_stamp as f64 * 1e-9
     );
     Ok(())
 }

@@ -1,0 +1,140 @@
+//! Subscriptions feeding a [`StepJoiner`]: each topic's samples are filed under their
+//! stamp. The babbler and the recorder each hold one feed per topic they join; what a
+//! joiner refuses (stale or duplicate samples from a stray publisher) and what cannot be
+//! read is logged and counted, never fatal.
+
+use std::cell::Cell;
+use std::time::Duration;
+
+use causal_arm_msgs::builtin_interfaces::msg::Time;
+use causal_arm_protocol::{StepJoiner, StepParts, ns_from_time};
+use ros2_client::Subscription;
+use serde::de::DeserializeOwned;
+
+use crate::take_next;
+
+/// Samples logged in full before the rest are only counted.
+const LOGGED: u64 = 5;
+
+/// One topic's samples into a joiner of `P`.
+pub trait Feed<P> {
+    /// The topic.
+    fn topic(&self) -> &'static str;
+    /// Files every sample already waiting; returns how many arrived.
+    fn drain(&self, joiner: &mut StepJoiner<P>) -> usize;
+    /// Waits up to `timeout` for one sample and files it; returns whether one arrived.
+    fn wait(&self, joiner: &mut StepJoiner<P>, timeout: Duration) -> bool;
+    /// Samples that could not be read.
+    fn unreadable(&self) -> u64;
+}
+
+/// A [`Feed`] of message type `M`: `stamp` says which step a sample belongs to and `put`
+/// files it into the step's parts (see [`StepJoiner::insert`]).
+pub struct TopicFeed<M, P> {
+    topic: &'static str,
+    subscription: Subscription<M>,
+    stamp: fn(&M) -> &Time,
+    put: fn(&mut P, M) -> bool,
+    unreadable: Cell<u64>,
+}
+
+impl<M, P> TopicFeed<M, P> {
+    /// A feed of `subscription` on `topic`.
+    pub fn new(
+        topic: &'static str,
+        subscription: Subscription<M>,
+        stamp: fn(&M) -> &Time,
+        put: fn(&mut P, M) -> bool,
+    ) -> Self {
+        Self {
+            topic,
+            subscription,
+            stamp,
+            put,
+            unreadable: Cell::new(0),
+        }
+    }
+}
+
+impl<M: 'static + DeserializeOwned, P: StepParts> TopicFeed<M, P> {
+    fn file(&self, joiner: &mut StepJoiner<P>, message: M) {
+        let stamp = ns_from_time((self.stamp)(&message));
+        let put = self.put;
+        if let Err(refusal) = joiner.insert(self.topic, stamp, |parts| put(parts, message)) {
+            let counts = joiner.counts();
+            if counts.stale + counts.duplicate <= LOGGED {
+                tracing::warn!("ignoring a sample: {refusal}");
+            }
+        }
+    }
+
+    fn count_unreadable(&self, problem: impl std::fmt::Display) {
+        let n = self.unreadable.get() + 1;
+        self.unreadable.set(n);
+        if n <= LOGGED {
+            tracing::warn!("ignoring an unreadable {} sample: {problem}", self.topic);
+        }
+    }
+}
+
+impl<M: 'static + DeserializeOwned, P: StepParts> Feed<P> for TopicFeed<M, P> {
+    fn topic(&self) -> &'static str {
+        self.topic
+    }
+
+    fn drain(&self, joiner: &mut StepJoiner<P>) -> usize {
+        let mut arrived = 0;
+        loop {
+            match self.subscription.take() {
+                Ok(Some((message, _))) => self.file(joiner, message),
+                Ok(None) => return arrived,
+                Err(e) => self.count_unreadable(format!("{e:?}")),
+            }
+            arrived += 1;
+        }
+    }
+
+    fn wait(&self, joiner: &mut StepJoiner<P>, timeout: Duration) -> bool {
+        match take_next(&self.subscription, timeout) {
+            Some(Ok(message)) => self.file(joiner, message),
+            Some(Err(e)) => self.count_unreadable(e),
+            None => return false,
+        }
+        true
+    }
+
+    fn unreadable(&self) -> u64 {
+        self.unreadable.get()
+    }
+}
+
+/// Files everything waiting on `feeds`; if nothing was, sleeps until the sample the
+/// oldest pending step lacks arrives (or the first feed's, or `timeout`), so an idle loop
+/// never polls. Returns whether anything arrived.
+pub fn drain_or_wait<P: StepParts>(
+    feeds: &[Box<dyn Feed<P>>],
+    joiner: &mut StepJoiner<P>,
+    timeout: Duration,
+) -> bool {
+    let arrived: usize = feeds.iter().map(|f| f.drain(joiner)).sum();
+    if arrived > 0 {
+        return true;
+    }
+    let lacking = joiner
+        .first_missing()
+        .and_then(|(_, missing)| missing.first().copied());
+    let feed = lacking
+        .and_then(|topic| feeds.iter().find(|f| f.topic() == topic))
+        .or(feeds.first());
+    feed.is_some_and(|f| f.wait(joiner, timeout))
+}
+
+/// One line on what the feeds and the joiner refused, for the node's last log line.
+pub fn refusal_summary<P: StepParts>(feeds: &[Box<dyn Feed<P>>], joiner: &StepJoiner<P>) -> String {
+    let counts = joiner.counts();
+    let unreadable: u64 = feeds.iter().map(|f| f.unreadable()).sum();
+    format!(
+        "ignored {} stale, {} duplicate and {unreadable} unreadable samples; dropped {} incomplete steps",
+        counts.stale, counts.duplicate, counts.abandoned
+    )
+}

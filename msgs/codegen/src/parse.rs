@@ -372,63 +372,26 @@ fn parse_section(
             !l.is_empty() && !l.contains(char::is_whitespace)
         });
         if let Some((cname, cvalue)) = constant {
-            let cname = cname.trim();
-            let cvalue = cvalue.trim();
-            check_constant_name(ctx, lineno, cname)?;
-            if ty.array != ArrayKind::Scalar {
-                return Err(ctx.err(lineno, format!("constant {cname} has array type `{type_tok}`: constants must be primitive scalars")));
+            let c = parse_constant(
+                ctx,
+                lineno,
+                &ty,
+                type_tok,
+                cname.trim(),
+                cvalue.trim(),
+                item_doc,
+            )?;
+            if constants.iter().any(|k| k.name == c.name) {
+                return Err(ctx.err(lineno, format!("constant {} is declared twice", c.name)));
             }
-            if !ty.base.is_primitive() {
-                return Err(ctx.err(lineno, format!("constant {cname} has message type `{type_tok}`: constants must be primitive scalars")));
-            }
-            if cvalue.is_empty() {
-                return Err(ctx.err(lineno, format!("constant {cname} has no value after `=`")));
-            }
-            let value = parse_scalar(ctx, lineno, &ty.base, cvalue, &format!("constant {cname}"))?;
-            if constants.iter().any(|c| c.name == cname) {
-                return Err(ctx.err(lineno, format!("constant {cname} is declared twice")));
-            }
-            constants.push(Constant {
-                name: cname.to_string(),
-                ty: ty.base,
-                value,
-                doc: item_doc,
-                line: lineno,
-            });
+            constants.push(c);
             continue;
         }
-        let (fname, default) = match rest.split_once(char::is_whitespace) {
-            Some((n, d)) => (n, Some(d.trim())),
-            None => (rest, None),
-        };
-        check_field_name(ctx, lineno, fname)?;
-        let default = match default {
-            None => None,
-            Some(d) => {
-                if !ty.base.is_primitive() {
-                    return Err(ctx.err(
-                        lineno,
-                        format!(
-                            "field {fname} of message type `{type_tok}` cannot have a default value"
-                        ),
-                    ));
-                }
-                Some(parse_default(ctx, lineno, &ty, d, fname)?)
-            }
-        };
-        if let BaseType::WString { .. } = ty.base {
-            return Err(ctx.err(lineno, format!("field {fname}: `wstring` is not supported by this generator (use `string`, UTF-8)")));
+        let field = parse_field(ctx, lineno, ty, type_tok, rest, item_doc)?;
+        if fields.iter().any(|f| f.name == field.name) {
+            return Err(ctx.err(lineno, format!("field {} is declared twice", field.name)));
         }
-        if fields.iter().any(|f| f.name == fname) {
-            return Err(ctx.err(lineno, format!("field {fname} is declared twice")));
-        }
-        fields.push(Field {
-            name: fname.to_string(),
-            ty,
-            default,
-            doc: item_doc,
-            line: lineno,
-        });
+        fields.push(field);
     }
     Ok(MessageSpec {
         package: ctx.package.to_string(),
@@ -437,6 +400,86 @@ fn parse_section(
         constants,
         doc,
         text,
+    })
+}
+
+/// One `TYPE NAME=VALUE` line: a primitive scalar constant.
+fn parse_constant(
+    ctx: &Ctx<'_>,
+    lineno: usize,
+    ty: &FieldType,
+    type_tok: &str,
+    cname: &str,
+    cvalue: &str,
+    doc: Vec<String>,
+) -> Result<Constant, ParseError> {
+    check_constant_name(ctx, lineno, cname)?;
+    if ty.array != ArrayKind::Scalar {
+        return Err(ctx.err(
+            lineno,
+            format!(
+                "constant {cname} has array type `{type_tok}`: constants must be primitive scalars"
+            ),
+        ));
+    }
+    if !ty.base.is_primitive() {
+        return Err(ctx.err(lineno, format!("constant {cname} has message type `{type_tok}`: constants must be primitive scalars")));
+    }
+    if cvalue.is_empty() {
+        return Err(ctx.err(lineno, format!("constant {cname} has no value after `=`")));
+    }
+    let value = parse_scalar(ctx, lineno, &ty.base, cvalue, &format!("constant {cname}"))?;
+    Ok(Constant {
+        name: cname.to_string(),
+        ty: ty.base.clone(),
+        value,
+        doc,
+        line: lineno,
+    })
+}
+
+/// One `TYPE NAME [DEFAULT]` line (`rest` is what follows the type).
+fn parse_field(
+    ctx: &Ctx<'_>,
+    lineno: usize,
+    ty: FieldType,
+    type_tok: &str,
+    rest: &str,
+    doc: Vec<String>,
+) -> Result<Field, ParseError> {
+    let (fname, default) = match rest.split_once(char::is_whitespace) {
+        Some((n, d)) => (n, Some(d.trim())),
+        None => (rest, None),
+    };
+    check_field_name(ctx, lineno, fname)?;
+    let default = match default {
+        None => None,
+        Some(d) => {
+            if !ty.base.is_primitive() {
+                return Err(ctx.err(
+                    lineno,
+                    format!(
+                        "field {fname} of message type `{type_tok}` cannot have a default value"
+                    ),
+                ));
+            }
+            Some(parse_default(ctx, lineno, &ty, d, fname)?)
+        }
+    };
+    if let BaseType::WString { .. } = ty.base {
+        return Err(ctx.err(
+            lineno,
+            format!(
+                "field {fname}: `wstring` is not supported by this generator (use `string`, UTF-8)"
+            ),
+        ));
+    }
+    Ok(Field {
+        name: fname.to_string(),
+        ty,
+        default,
+        doc,
+        line: lineno,
     })
 }
 

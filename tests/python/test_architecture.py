@@ -1,0 +1,89 @@
+"""The architecture's rules, checked against cargo's own view of the workspace, so
+docs/ARCHITECTURE.md stays true: its crate table matches `cargo metadata`, no library imports
+a node crate, the trainer and explainer build no physics, the babbler no simulator, and the
+async runtime is tokio alone."""
+
+import json
+import pathlib
+import re
+import subprocess
+
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+FRONT_END = "causal-arm"
+
+
+def short(name: str) -> str:
+    return name.removeprefix("causal_arm_")
+
+
+@pytest.fixture(scope="module")
+def workspace():
+    """{crate: (path relative to the repo, {dependency kind: set of project crates})}."""
+    out = subprocess.run(["cargo", "metadata", "--format-version", "1", "--no-deps", "--locked"],
+                         cwd=REPO, capture_output=True, text=True, check=True).stdout
+    packages = json.loads(out)["packages"]
+    names = {p["name"] for p in packages}
+    crates = {}
+    for p in packages:
+        path = str(pathlib.Path(p["manifest_path"]).parent.relative_to(REPO))
+        deps = {"normal": set(), "dev": set(), "build": set()}
+        for d in p["dependencies"]:
+            if d["name"] in names:
+                deps[d["kind"] or "normal"].add(d["name"])
+        crates[p["name"]] = (path, deps)
+    return crates
+
+
+def documented_table():
+    """Rows of the crate table in docs/ARCHITECTURE.md: {crate: (path, set of short deps)}."""
+    text = (REPO / "docs" / "ARCHITECTURE.md").read_text()
+    rows = {}
+    for line in text.splitlines():
+        m = re.match(r"\| `([^`]+)` \| `([^`]+)` \| .* \| ([^|]*) \|$", line)
+        if m:
+            deps = {d.strip() for d in m.group(3).split(",") if d.strip() not in ("", "—")}
+            rows[m.group(1)] = (m.group(2), deps)
+    return rows
+
+
+def test_the_documented_crate_table_is_cargos(workspace):
+    table = documented_table()
+    assert set(table) == set(workspace), "crates missing from or extra in docs/ARCHITECTURE.md"
+    for crate, (path, deps) in workspace.items():
+        assert table[crate][0] == path, f"{crate}: documented at {table[crate][0]}, is at {path}"
+        actual = {short(d) for d in deps["normal"]}
+        assert table[crate][1] == actual, f"{crate}: documented deps {table[crate][1]}, cargo says {actual}"
+
+
+def test_no_library_imports_a_node_crate(workspace):
+    nodes = {c for c, (path, _) in workspace.items() if path.startswith("nodes/")}
+    assert {"causal_arm_graph", "causal_arm_trainer", "causal_arm_explainer"} <= nodes
+    for crate, (path, deps) in workspace.items():
+        if crate in nodes or crate == FRONT_END:
+            continue
+        for kind, names in deps.items():
+            assert not names & nodes, f"library {crate} ({path}) has {kind} dependencies on nodes {names & nodes}"
+
+
+def cargo_tree(package: str) -> str:
+    return subprocess.run(["cargo", "tree", "--locked", "-e", "normal", "-p", package, "--prefix", "none"],
+                          cwd=REPO, capture_output=True, text=True, check=True).stdout
+
+
+@pytest.mark.parametrize("package", ["causal_arm_trainer", "causal_arm_explainer"])
+def test_the_learning_nodes_build_no_physics(package):
+    assert "rapier3d" not in cargo_tree(package)
+
+
+def test_the_babbler_builds_no_simulator():
+    tree = cargo_tree("causal_arm_babbler")
+    assert "causal_arm_sim " not in tree and "rapier3d" not in tree
+
+
+def test_tokio_is_the_only_async_runtime():
+    lock = (REPO / "Cargo.lock").read_text()
+    packages = set(re.findall(r'^name = "([^"]+)"', lock, re.M))
+    assert "tokio" in packages
+    assert not packages & {"smol", "async-std", "ctrlc"}, packages & {"smol", "async-std", "ctrlc"}

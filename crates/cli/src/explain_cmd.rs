@@ -3,7 +3,6 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::progress::Counter;
 use anyhow::Context;
 use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
 use causal_arm_explainer::influence::{
@@ -21,6 +20,44 @@ use causal_arm_trainer::load_model;
 use causal_arm_truth::{Truth, check_names, score_claims, score_table};
 use clap::Args;
 
+use crate::choice::choice;
+use crate::progress::Counter;
+
+/// What `causal-arm explain` computes: a SHAP attribution, or an influence measure with
+/// its own decision rule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExplainMethod {
+    /// Deep SHAP (the paper's).
+    Deep,
+    /// Kernel SHAP.
+    Kernel,
+    /// Causal influence: spread of the prediction when one action is resampled.
+    Cai,
+    /// Signed influence reproduced across independently trained models.
+    Agreement,
+    /// Signed influence against a_j drawn given the rest of the state.
+    Holdout,
+}
+
+causal_arm_protocol::choice!(ExplainMethod, "SHAP method", [
+    ExplainMethod::Deep => "deep",
+    ExplainMethod::Kernel => "kernel",
+    ExplainMethod::Cai => "cai",
+    ExplainMethod::Agreement => "agreement",
+    ExplainMethod::Holdout => "holdout",
+]);
+
+impl ExplainMethod {
+    /// The SHAP method, or `None` for an influence method.
+    fn shap(self) -> Option<Method> {
+        match self {
+            Self::Deep => Some(Method::Deep),
+            Self::Kernel => Some(Method::Kernel),
+            Self::Cai | Self::Agreement | Self::Holdout => None,
+        }
+    }
+}
+
 /// Arguments of `causal-arm explain`.
 #[derive(Debug, Args)]
 pub struct ExplainArgs {
@@ -37,8 +74,8 @@ pub struct ExplainArgs {
     /// Method: deep (Deep SHAP, the paper's), kernel (Kernel SHAP), cai (causal influence:
     /// spread of the prediction when one action is resampled from its marginal) or
     /// agreement (signed influence reproduced across --model and every --also-model).
-    #[arg(long, default_value = "deep")]
-    method: String,
+    #[arg(long, default_value = "deep", value_parser = choice::<ExplainMethod>())]
+    method: ExplainMethod,
     /// Observations to explain (the paper: 200).
     #[arg(long, default_value_t = 200)]
     samples: usize,
@@ -47,8 +84,8 @@ pub struct ExplainArgs {
     background: Option<usize>,
     /// How the background is drawn: sample or kmeans (default: sample for deep, kmeans
     /// for kernel).
-    #[arg(long)]
-    background_kind: Option<String>,
+    #[arg(long, value_parser = choice::<BackgroundKind>())]
+    background_kind: Option<BackgroundKind>,
     /// Kernel SHAP coalitions per observation (default 2·M + 2048, shap's "auto"; at least
     /// 2^M − 2 enumerates them all and gives exact Shapley values).
     #[arg(long)]
@@ -59,8 +96,8 @@ pub struct ExplainArgs {
     threshold: f64,
     /// Action columns: realized or commanded (default: what the model was trained on,
     /// from metrics.json, else realized).
-    #[arg(long)]
-    action: Option<String>,
+    #[arg(long, value_parser = choice::<ActionSource>())]
+    action: Option<ActionSource>,
     /// Seed of the observation/background draws and of Kernel SHAP's sampler.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -108,14 +145,17 @@ fn trained_action_source(model_dir: &Path, name: &str) -> Option<String> {
 
 /// Settings from the command line, checked.
 fn settings(args: &ExplainArgs) -> anyhow::Result<Settings> {
-    let method: Method = args.method.parse().map_err(anyhow::Error::msg)?;
+    let method = args
+        .method
+        .shap()
+        .expect("influence methods take another path");
     let mut settings = Settings::for_method(method);
     settings.samples = args.samples;
     if let Some(b) = args.background {
         settings.background = b;
     }
-    if let Some(kind) = &args.background_kind {
-        settings.background_kind = kind.parse::<BackgroundKind>().map_err(anyhow::Error::msg)?;
+    if let Some(kind) = args.background_kind {
+        settings.background_kind = kind;
     }
     settings.kernel_samples = args.kernel_samples;
     settings.seed = args.seed;
@@ -137,17 +177,17 @@ fn load(args: &ExplainArgs, truth: Option<&Truth>) -> anyhow::Result<(Explainer,
     if let Some(truth) = truth {
         check_names(
             truth,
-            &args.method,
+            &args.method.to_string(),
             explainer.action_names(),
             explainer.state_names(),
         )?;
     }
-    let action_text = args
-        .action
-        .clone()
-        .or_else(|| trained_action_source(&args.model, &args.name))
-        .unwrap_or_else(|| "realized".into());
-    let action: ActionSource = action_text.parse().map_err(anyhow::Error::msg)?;
+    let action = match args.action {
+        Some(action) => action,
+        None => trained_action_source(&args.model, &args.name)
+            .map_or(Ok(ActionSource::Realized), |text| text.parse())
+            .map_err(anyhow::Error::msg)?,
+    };
     let cache = Cache::new(args.cache.clone().unwrap_or_else(Cache::default_dir));
     let (data, _) = load_bags(
         &args.bags,
@@ -179,7 +219,7 @@ pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
     if let Some(horizon) = args.horizon {
         return run_multistep(args, truth.as_ref(), horizon);
     }
-    if ["cai", "agreement", "holdout"].contains(&args.method.as_str()) {
+    if args.method.shap().is_none() {
         return run_influence(args, truth.as_ref());
     }
     let settings = settings(args)?;
@@ -346,7 +386,7 @@ fn run_influence(args: &ExplainArgs, truth: Option<&Truth>) -> anyhow::Result<()
     let (explainer, data) = load(args, truth)?;
     let settings = influence_settings(args);
     let started = std::time::Instant::now();
-    let (effects, claims) = if args.method == "cai" {
+    let (effects, claims) = if args.method == ExplainMethod::Cai {
         let effects = cai_effects(&explainer, &data, &settings)?;
         let floors = ErrorFloors::measure(&explainer, &data, &settings)?;
         let claims = claims_by_context(
@@ -357,7 +397,7 @@ fn run_influence(args: &ExplainArgs, truth: Option<&Truth>) -> anyhow::Result<()
             Rule::ErrorRatio(&floors),
         );
         (effects, claims)
-    } else if args.method == "holdout" {
+    } else if args.method == ExplainMethod::Holdout {
         let effects = holdout_effects(&explainer, &data, &settings)?;
         let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::Significance);
         (effects, claims)
@@ -459,10 +499,10 @@ fn finish_claims(
 /// steps, verdicts per horizon and context, scored against the truth's matrix at each
 /// horizon; a horizon the truth lacks is refused before any chaining.
 fn run_multistep(args: &ExplainArgs, truth: Option<&Truth>, horizon: usize) -> anyhow::Result<()> {
-    if args.method != "cai" {
+    if args.method != ExplainMethod::Cai {
         anyhow::bail!(
             "--horizon attributes through the chained forward model with CAI; use it with --method cai, not {:?}",
-            args.method
+            args.method.to_string()
         );
     }
     multistep::check_horizon(horizon)?;

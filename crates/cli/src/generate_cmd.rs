@@ -11,15 +11,18 @@ use causal_arm_protocol::{Experiment, Profile, RunPlan};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::choice::choice;
+
 /// Arguments shared by `generate` and `launch`; the run's defaults come from the graph
 /// file (launch_scripts/graph.toml), as the nodes' do.
 #[derive(Debug, Args)]
 pub struct GenerateArgs {
     /// exp1 (kinematics) or exp2 (magnet, cube, table).
-    experiment: String,
+    #[arg(value_parser = choice::<Experiment>())]
+    experiment: Experiment,
     /// paper (the paper's dataset size) or quick (a demo in about a minute).
-    #[arg(long, default_value = run_default_text("profile"))]
-    profile: String,
+    #[arg(long, default_value = run_default_text("profile"), value_parser = choice::<Profile>())]
+    profile: Profile,
     /// Override the number of steps (exp1) — must be positive.
     #[arg(long, allow_negative_numbers = true)]
     steps: Option<i64>,
@@ -54,8 +57,7 @@ pub struct GenerateArgs {
 impl GenerateArgs {
     /// Validated options.
     pub fn options(&self) -> anyhow::Result<GenerateOptions> {
-        let experiment: Experiment = self.experiment.parse().map_err(anyhow::Error::msg)?;
-        let profile: Profile = self.profile.parse().map_err(anyhow::Error::msg)?;
+        let (experiment, profile) = (self.experiment, self.profile);
         let mut plan = RunPlan::for_profile(experiment, profile);
         let positive = |v: i64, flag: &str| -> anyhow::Result<u64> {
             if v <= 0 {

@@ -7,13 +7,15 @@ use causal_arm_protocol::Experiment;
 use causal_arm_truth::{Edge, Plan, intervene, write_all};
 use clap::Args;
 
+use crate::choice::choice;
 use crate::progress::Counter;
 
 /// Arguments of `causal-arm intervene`.
 #[derive(Debug, Args)]
 pub struct InterveneArgs {
     /// Experiment of the bag: exp1 or exp2.
-    experiment: String,
+    #[arg(value_parser = choice::<Experiment>())]
+    experiment: Experiment,
     /// Bag written by `causal-arm generate` or `launch` (its recorded settings let the
     /// simulator revisit every state exactly).
     #[arg(long)]
@@ -46,7 +48,7 @@ pub struct InterveneArgs {
 
 /// Runs `causal-arm intervene`.
 pub fn run(args: &InterveneArgs) -> anyhow::Result<()> {
-    let experiment: Experiment = args.experiment.parse().map_err(anyhow::Error::msg)?;
+    let experiment = args.experiment;
     let plan = Plan {
         states: args.states,
         seed: args.seed,

@@ -1,6 +1,7 @@
 //! `causal-arm`: one entry point for every tool and node of the project.
 
 mod bag_cmd;
+mod choice;
 mod explain_cmd;
 mod generate_cmd;
 mod intervene_cmd;
@@ -71,7 +72,10 @@ fn main() -> std::process::ExitCode {
         eprintln!("error: {err}");
         return std::process::ExitCode::FAILURE;
     }
-    let cli = Cli::parse_from(rest);
+    let cli = match Cli::try_parse_from(rest) {
+        Ok(cli) => cli,
+        Err(err) => return usage_exit(&err),
+    };
     let result = match &cli.command {
         Command::Fk(args) => kinematics_cmd::run_fk(args),
         Command::Ik(args) => kinematics_cmd::run_ik(args),
@@ -92,5 +96,16 @@ fn main() -> std::process::ExitCode {
             eprintln!("error: {err:#}");
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+/// Prints clap's help, version or error. Help and version exit 0; a bad command line exits
+/// 1, like every other refused input of this tool.
+fn usage_exit(err: &clap::Error) -> std::process::ExitCode {
+    use clap::error::ErrorKind;
+    let _ = err.print();
+    match err.kind() {
+        ErrorKind::DisplayHelp | ErrorKind::DisplayVersion => std::process::ExitCode::SUCCESS,
+        _ => std::process::ExitCode::FAILURE,
     }
 }

@@ -50,7 +50,7 @@ struct PubArgs {
     #[arg(long, default_value_t = 30.0)]
     timeout: f64,
     /// QoS profile: recorded, clock, latched, default, services, best_effort.
-    #[arg(long, default_value = "default")]
+    #[arg(long, default_value = "default", value_parser = clap::builder::PossibleValuesParser::new(qos::PROFILE_NAMES))]
     qos: String,
     /// After subscribers matched, wait this long so their side of discovery completes too
     /// (a reader drops samples from writers it has not matched yet).
@@ -75,7 +75,7 @@ struct EchoArgs {
     #[arg(long, default_value_t = 0.0)]
     timeout: f64,
     /// QoS profile: recorded, clock, latched, default, services, best_effort.
-    #[arg(long, default_value = "default")]
+    #[arg(long, default_value = "default", value_parser = clap::builder::PossibleValuesParser::new(qos::PROFILE_NAMES))]
     qos: String,
 }
 

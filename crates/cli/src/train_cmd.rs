@@ -10,8 +10,10 @@ use causal_arm_trainer::fit::{Progress, ProgressLog};
 use causal_arm_trainer::job::{SavedRun, train_and_save};
 use causal_arm_trainer::problems::FmTarget;
 use causal_arm_trainer::structure::{Auxiliary, FoundGraph};
-use causal_arm_trainer::{Figure, LrSchedule, ModelKind, Profile, TrainOptions};
+use causal_arm_trainer::{Figure, LrSchedule, ModelKind, ModelRequest, Profile, TrainOptions};
 use clap::Args;
+
+use crate::choice::choice;
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// Arguments of `causal-arm train`.
@@ -22,11 +24,11 @@ pub struct TrainArgs {
     bags: Vec<PathBuf>,
     /// fm, im-mono, im-pre, ablation, fm-factored (needs --graph), or all (every model of
     /// the bag's experiment).
-    #[arg(long, default_value = "all")]
-    model: String,
+    #[arg(long, default_value = "all", value_parser = choice::<ModelRequest>())]
+    model: ModelRequest,
     /// Epoch budgets: paper (60-4,000 epochs) or quick.
-    #[arg(long, default_value = "paper")]
-    profile: String,
+    #[arg(long, default_value = "paper", value_parser = choice::<Profile>())]
+    profile: Profile,
     /// Epochs of every network (overrides the profile).
     #[arg(long)]
     epochs: Option<usize>,
@@ -37,14 +39,14 @@ pub struct TrainArgs {
     #[arg(long)]
     max_folds: Option<usize>,
     /// Refuse bags that are not this experiment (default: whatever the first bag holds).
-    #[arg(long)]
-    experiment: Option<String>,
+    #[arg(long, value_parser = choice::<Experiment>())]
+    experiment: Option<Experiment>,
     /// Action vector: realized (θ(t+1) − θ(t), the paper's) or commanded deltas.
-    #[arg(long, default_value = "realized")]
-    action: String,
+    #[arg(long, default_value = "realized", value_parser = choice::<ActionSource>())]
+    action: ActionSource,
     /// Forward-model output: delta (s(t+1) − s(t), added back) or absolute.
-    #[arg(long, default_value = "delta")]
-    fm_target: String,
+    #[arg(long, default_value = "delta", value_parser = choice::<FmTarget>())]
+    fm_target: FmTarget,
     /// FM hidden layer widths.
     #[arg(long, value_delimiter = ',', default_value = "256,256,256")]
     fm_hidden: Vec<usize>,
@@ -88,7 +90,7 @@ pub struct TrainArgs {
     /// subset of the actions of one of the head's features (θ(t+1) for ef(t+1));
     /// determined, every feature driven only by the head's actions; auto, per head the one
     /// that predicts it best on the last twentieth of the training rows.
-    #[arg(long, default_value = "auto", value_parser = auxiliary_policy())]
+    #[arg(long, default_value = "auto", value_parser = choice::<Auxiliary>())]
     factored_auxiliary: Auxiliary,
     /// Output directory for model files and metrics.json.
     #[arg(long)]
@@ -175,10 +177,7 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
             "--model fm-factored needs --graph CLAIMS_JSON (the claims.json of `causal-arm explain`)"
         );
     }
-    let kinds = match requested {
-        Some(kind) => vec![kind],
-        None => ModelKind::all_for(data.experiment),
-    };
+    let kinds = args.model.kinds(data.experiment);
 
     let mut progress = TrainingProgress::new();
     let saved = train_and_save(&data, &kinds, &options, action, &args.out, &mut |p| {
@@ -207,20 +206,10 @@ struct CheckedArgs {
 /// Parses and checks every option of `args` (all but the graph, which needs the data's
 /// experiment) into the trainer's options.
 fn checked_options(args: &TrainArgs) -> anyhow::Result<CheckedArgs> {
-    let profile: Profile = args.profile.parse().map_err(anyhow::Error::msg)?;
-    let action: ActionSource = args.action.parse().map_err(anyhow::Error::msg)?;
-    let fm_target: FmTarget = args.fm_target.parse().map_err(anyhow::Error::msg)?;
+    let (profile, action, fm_target) = (args.profile, args.action, args.fm_target);
     let lr_schedule: LrSchedule = args.lr_schedule.parse().map_err(anyhow::Error::msg)?;
-    let expected: Option<Experiment> = args
-        .experiment
-        .as_deref()
-        .map(str::parse)
-        .transpose()
-        .map_err(anyhow::Error::msg)?;
-    let requested: Option<ModelKind> = match args.model.as_str() {
-        "all" => None,
-        other => Some(other.parse().map_err(anyhow::Error::msg)?),
-    };
+    let expected = args.experiment;
+    let requested = args.model.one();
     if args.eval_every == Some(0) {
         bail!("--eval-every must be at least 1");
     }
@@ -387,11 +376,4 @@ fn print_results(data: &Dataset, options: &TrainOptions, saved: &SavedRun) {
         options.folds
     );
     print_table(&saved.figures);
-}
-
-/// `--factored-auxiliary`'s parser: `--help` lists the policies.
-fn auxiliary_policy() -> impl clap::builder::TypedValueParser<Value = Auxiliary> {
-    use clap::builder::TypedValueParser;
-    clap::builder::PossibleValuesParser::new(Auxiliary::ALL.map(Auxiliary::name))
-        .try_map(|s| s.parse::<Auxiliary>())
 }

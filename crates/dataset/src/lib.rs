@@ -32,27 +32,10 @@ pub enum ActionSource {
     Commanded,
 }
 
-impl std::str::FromStr for ActionSource {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "realized" => Ok(Self::Realized),
-            "commanded" => Ok(Self::Commanded),
-            other => Err(format!(
-                "unknown action source {other:?}: expected realized or commanded"
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for ActionSource {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Realized => "realized",
-            Self::Commanded => "commanded",
-        })
-    }
-}
+causal_arm_protocol::choice!(ActionSource, "action source", [
+    ActionSource::Realized => "realized",
+    ActionSource::Commanded => "commanded",
+]);
 
 /// Transitions of one experiment, row-major f32 matrices with one row per transition.
 #[derive(Debug, Clone, PartialEq)]

@@ -4,8 +4,6 @@
 //! The generator writes these and the dataset builder, the ground truth and the CLI read
 //! them; none of the readers should have to build the generator to learn their names.
 
-use std::str::FromStr;
-
 /// Which of the paper's experiments.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Experiment {
@@ -15,27 +13,7 @@ pub enum Experiment {
     Exp2,
 }
 
-impl FromStr for Experiment {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "exp1" => Ok(Self::Exp1),
-            "exp2" => Ok(Self::Exp2),
-            other => Err(format!(
-                "unknown experiment {other:?}: expected exp1 or exp2"
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for Experiment {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Exp1 => "exp1",
-            Self::Exp2 => "exp2",
-        })
-    }
-}
+crate::choice!(Experiment, "experiment", [Experiment::Exp1 => "exp1", Experiment::Exp2 => "exp2"]);
 
 /// Size presets: the dataset a run generates ([`RunPlan::for_profile`]) and the epochs the
 /// trainer gives each network; one name, so `--profile quick` means the same everywhere.
@@ -49,18 +27,7 @@ pub enum Profile {
     Quick,
 }
 
-impl FromStr for Profile {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "paper" => Ok(Self::Paper),
-            "quick" => Ok(Self::Quick),
-            other => Err(format!(
-                "unknown profile {other:?}: expected paper or quick"
-            )),
-        }
-    }
-}
+crate::choice!(Profile, "profile", [Profile::Paper => "paper", Profile::Quick => "quick"]);
 
 /// How many episodes of how many steps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -68,27 +68,7 @@ pub enum Method {
     Kernel,
 }
 
-impl std::str::FromStr for Method {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "deep" => Ok(Self::Deep),
-            "kernel" => Ok(Self::Kernel),
-            other => Err(format!(
-                "unknown SHAP method {other:?}: expected deep or kernel"
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for Method {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Deep => "deep",
-            Self::Kernel => "kernel",
-        })
-    }
-}
+causal_arm_protocol::choice!(Method, "SHAP method", [Method::Deep => "deep", Method::Kernel => "kernel"]);
 
 /// How the background (the reference distribution attributions are measured against) is
 /// drawn from the data.
@@ -102,18 +82,10 @@ pub enum BackgroundKind {
     Kmeans,
 }
 
-impl std::str::FromStr for BackgroundKind {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "sample" => Ok(Self::Sample),
-            "kmeans" => Ok(Self::Kmeans),
-            other => Err(format!(
-                "unknown background kind {other:?}: expected sample or kmeans"
-            )),
-        }
-    }
-}
+causal_arm_protocol::choice!(BackgroundKind, "background kind", [
+    BackgroundKind::Sample => "sample",
+    BackgroundKind::Kmeans => "kmeans",
+]);
 
 /// Rows k-means summarises at most (more adds time, not a better summary of 50 centres).
 pub const KMEANS_POOL: usize = 20_000;

@@ -22,7 +22,7 @@ pub use causal_arm_protocol::Profile;
 pub use cv::cross_validate;
 pub use error::TrainError;
 pub use model_file::{LoadedModel, ModelMeta, load_model, save_model};
-pub use options::{ModelKind, TrainOptions};
+pub use options::{ModelKind, ModelRequest, TrainOptions};
 pub use report::{
     CurvePoint, Figure, FoldFigure, KindReport, ProblemInfo, RunRecord, Selection, paper_figure,
 };

@@ -42,33 +42,51 @@ impl ModelKind {
 
     /// Name on the command line and in files.
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Fm => "fm",
-            Self::ImMono => "im-mono",
-            Self::ImPre => "im-pre",
-            Self::Ablation => "ablation",
-            Self::FmFactored => "fm-factored",
-        }
+        causal_arm_protocol::Choice::choice_name(self)
     }
 }
 
-impl std::str::FromStr for ModelKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        [
-            Self::Fm,
-            Self::ImMono,
-            Self::ImPre,
-            Self::Ablation,
-            Self::FmFactored,
-        ]
-        .into_iter()
-        .find(|k| k.name() == s)
-        .ok_or_else(|| {
-            format!(
-                "unknown model {s:?}: expected fm, im-mono, im-pre, ablation, fm-factored or all"
-            )
-        })
+causal_arm_protocol::choice!(ModelKind, "model", [
+    ModelKind::Fm => "fm",
+    ModelKind::ImMono => "im-mono",
+    ModelKind::ImPre => "im-pre",
+    ModelKind::Ablation => "ablation",
+    ModelKind::FmFactored => "fm-factored",
+]);
+
+/// The models a run trains: every model of the data's experiment, or one kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelRequest {
+    /// Every model the paper trains for the experiment ([`ModelKind::all_for`]).
+    All,
+    /// One kind.
+    One(ModelKind),
+}
+
+causal_arm_protocol::choice!(ModelRequest, "model", [
+    ModelRequest::One(ModelKind::Fm) => "fm",
+    ModelRequest::One(ModelKind::ImMono) => "im-mono",
+    ModelRequest::One(ModelKind::ImPre) => "im-pre",
+    ModelRequest::One(ModelKind::Ablation) => "ablation",
+    ModelRequest::One(ModelKind::FmFactored) => "fm-factored",
+    ModelRequest::All => "all",
+]);
+
+impl ModelRequest {
+    /// The kinds to train on data of `experiment`.
+    pub fn kinds(self, experiment: Experiment) -> Vec<ModelKind> {
+        match self {
+            Self::All => ModelKind::all_for(experiment),
+            Self::One(kind) => vec![kind],
+        }
+    }
+
+    /// The one kind asked for, if not all.
+    pub fn one(self) -> Option<ModelKind> {
+        match self {
+            Self::All => None,
+            Self::One(kind) => Some(kind),
+        }
     }
 }
 

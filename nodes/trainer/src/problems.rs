@@ -53,18 +53,10 @@ pub enum FmTarget {
     Absolute,
 }
 
-impl std::str::FromStr for FmTarget {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "delta" => Ok(Self::Delta),
-            "absolute" => Ok(Self::Absolute),
-            other => Err(format!(
-                "unknown forward-model target {other:?}: expected delta or absolute"
-            )),
-        }
-    }
-}
+causal_arm_protocol::choice!(FmTarget, "forward-model target", [
+    FmTarget::Delta => "delta",
+    FmTarget::Absolute => "absolute",
+]);
 
 /// A supervised problem: `truth = network output + offset` row by row.
 #[derive(Debug, Clone)]

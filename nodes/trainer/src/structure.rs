@@ -225,29 +225,16 @@ impl Auxiliary {
 
     /// The policy's name on the command line and in metrics.json.
     pub fn name(self) -> &'static str {
-        match self {
-            Self::None => "none",
-            Self::Upstream => "upstream",
-            Self::Determined => "determined",
-            Self::Auto => "auto",
-        }
+        causal_arm_protocol::Choice::choice_name(self)
     }
 }
 
-impl std::str::FromStr for Auxiliary {
-    type Err = TrainError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .into_iter()
-            .find(|a| a.name() == s)
-            .ok_or_else(|| {
-                TrainError::Options(format!(
-                    "unknown auxiliary policy {s:?}: expected none, upstream, determined or auto"
-                ))
-            })
-    }
-}
+causal_arm_protocol::choice!(Auxiliary, "auxiliary policy", [
+    Auxiliary::None => "none",
+    Auxiliary::Upstream => "upstream",
+    Auxiliary::Determined => "determined",
+    Auxiliary::Auto => "auto",
+]);
 
 /// One head of a forward model with its own network: the problem it is trained on and
 /// which of that problem's heads is the one it is for (the others are auxiliary outputs,

@@ -18,7 +18,7 @@ use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode};
 use causal_arm_trainer::fit::ProgressLog;
 use causal_arm_trainer::job::train_and_save;
 use causal_arm_trainer::serve::ModelSet;
-use causal_arm_trainer::{ModelKind, TrainOptions};
+use causal_arm_trainer::{ModelRequest, TrainOptions};
 use futures::FutureExt;
 
 /// Service names (relative names resolve in the node's namespace, as ROS does).
@@ -167,14 +167,9 @@ fn train_first(
     // Declared ranges keep these non-negative.
     let count = |name: &str| params.integer(name) as usize;
     let requested = params.string("models");
-    let kinds_wanted: Option<ModelKind> = match requested {
-        "all" => None,
-        other => Some(
-            other
-                .parse()
-                .map_err(|e| anyhow!("parameter models: {e}"))?,
-        ),
-    };
+    let requested: ModelRequest = requested
+        .parse()
+        .map_err(|e| anyhow!("parameter models: {e}"))?;
     let options = TrainOptions {
         profile: params
             .string("profile")
@@ -212,10 +207,7 @@ fn train_first(
             .collect::<Vec<_>>()
             .join(", ")
     );
-    let kinds = match kinds_wanted {
-        Some(kind) => vec![kind],
-        None => ModelKind::all_for(data.experiment),
-    };
+    let kinds = requested.kinds(data.experiment);
     let mut log = ProgressLog::new(LOG_EVERY);
     let saved = train_and_save(&data, &kinds, &options, action, out, &mut |p| {
         if let Some(line) = log.line(&p) {

@@ -243,3 +243,14 @@ class ServiceClient:
                     return reply
             time.sleep(0.0002)
         raise TimeoutError(f"no reply within {timeout} s")
+
+
+@dataclass
+class Action(IdlStruct, typename="causal_arm_msgs::msg::dds_::Action_"):
+    """causal_arm_msgs/msg/Action, written from msgs/msg/Action.msg."""
+    header: Header = field(default_factory=Header)
+    episode: t.uint32 = 0
+    step: t.uint32 = 0
+    joint_deltas: t.sequence[t.float64] = field(default_factory=list)
+    joint_targets: t.sequence[t.float64] = field(default_factory=list)
+    magnet: t.int8 = 0

@@ -11,6 +11,7 @@
 //! them here, with no DDS and no physics behind them, lets every crate agree on them without
 //! building rapier3d or ros2-client.
 
+pub mod checks;
 pub mod choice;
 pub mod experiment;
 pub mod graph;
@@ -20,6 +21,7 @@ pub mod scene;
 pub mod step;
 pub mod topics;
 
+pub use checks::{WellFormed, command_of};
 pub use choice::{Choice, one_of, parse_choice};
 pub use experiment::{Experiment, Profile, RunPlan, babbler_seed, bag_keys, sim_seed};
 pub use graph::{GraphSpec, NodeDecl, ParamDecl, ParamDefault, graph};

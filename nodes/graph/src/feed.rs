@@ -1,13 +1,14 @@
 //! Subscriptions feeding a [`StepJoiner`]: each topic's samples are filed under their
 //! stamp. The babbler and the recorder each hold one feed per topic they join; what a
 //! joiner refuses (stale or duplicate samples from a stray publisher) and what cannot be
-//! read is logged and counted, never fatal.
+//! read or is malformed is logged and counted, never fatal: a malformed sample never takes
+//! the place of the step's real one.
 
 use std::cell::Cell;
 use std::time::Duration;
 
 use causal_arm_msgs::builtin_interfaces::msg::Time;
-use causal_arm_protocol::{StepJoiner, StepParts, ns_from_time};
+use causal_arm_protocol::{StepJoiner, StepParts, WellFormed, ns_from_time};
 use ros2_client::Subscription;
 use serde::de::DeserializeOwned;
 
@@ -24,7 +25,7 @@ pub trait Feed<P> {
     fn drain(&self, joiner: &mut StepJoiner<P>) -> usize;
     /// Waits up to `timeout` for one sample and files it; returns whether one arrived.
     fn wait(&self, joiner: &mut StepJoiner<P>, timeout: Duration) -> bool;
-    /// Samples that could not be read.
+    /// Samples that could not be read or were malformed (see [`WellFormed`]).
     fn unreadable(&self) -> u64;
 }
 
@@ -56,8 +57,11 @@ impl<M, P> TopicFeed<M, P> {
     }
 }
 
-impl<M: 'static + DeserializeOwned, P: StepParts> TopicFeed<M, P> {
+impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> TopicFeed<M, P> {
     fn file(&self, joiner: &mut StepJoiner<P>, message: M) {
+        if let Err(problem) = message.well_formed() {
+            return self.count_unreadable(format!("malformed: {problem}"));
+        }
         let stamp = ns_from_time((self.stamp)(&message));
         let put = self.put;
         if let Err(refusal) = joiner.insert(self.topic, stamp, |parts| put(parts, message)) {
@@ -77,7 +81,7 @@ impl<M: 'static + DeserializeOwned, P: StepParts> TopicFeed<M, P> {
     }
 }
 
-impl<M: 'static + DeserializeOwned, P: StepParts> Feed<P> for TopicFeed<M, P> {
+impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> Feed<P> for TopicFeed<M, P> {
     fn topic(&self) -> &'static str {
         self.topic
     }
@@ -134,7 +138,7 @@ pub fn refusal_summary<P: StepParts>(feeds: &[Box<dyn Feed<P>>], joiner: &StepJo
     let counts = joiner.counts();
     let unreadable: u64 = feeds.iter().map(|f| f.unreadable()).sum();
     format!(
-        "ignored {} stale, {} duplicate and {unreadable} unreadable samples; dropped {} incomplete steps",
+        "ignored {} stale, {} duplicate and {unreadable} unreadable or malformed samples; dropped {} incomplete steps",
         counts.stale, counts.duplicate, counts.abandoned
     )
 }

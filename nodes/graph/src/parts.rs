@@ -8,7 +8,7 @@ use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::RosNode;
-use causal_arm_protocol::{StepMessages, StepParts, fill, step_parts, topics};
+use causal_arm_protocol::{StepMessages, StepParts, WellFormed, fill, step_parts, topics};
 use ros2_client::QosProfile;
 
 use crate::feed::{Feed, TopicFeed};
@@ -105,7 +105,7 @@ pub fn feed<M, P>(
     put: fn(&mut P, M) -> bool,
 ) -> anyhow::Result<Box<dyn Feed<P>>>
 where
-    M: RosMessage + 'static,
+    M: RosMessage + WellFormed + 'static,
     P: StepParts + 'static,
 {
     let subscription = node.subscription::<M>(topic, qos.clone())?;

@@ -17,7 +17,7 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{RosArgs, RosNode, qos};
-use causal_arm_protocol::{ARM_DOF, Command, SimState, StepMessages, ns_from_time, topics};
+use causal_arm_protocol::{Command, SimState, StepMessages, command_of, ns_from_time, topics};
 use ros2_client::{Publisher, Subscription};
 
 use crate::flow::AckWindow;
@@ -138,17 +138,26 @@ impl StepSink for DdsStatePublisher {
     }
 }
 
-/// The babbler node's answers as the loop's [`CommandSource`].
+/// The babbler node's answers as the loop's [`CommandSource`]. Answers to other stamps
+/// and malformed ones (any node may publish on the topic) are counted and skipped.
 struct DdsCommands {
     actions: Subscription<Action>,
     timeout: Duration,
     stop: Arc<AtomicBool>,
+    ignored: u64,
 }
 
 impl DdsCommands {
-    /// The action answering the state stamped `stamp`; answers to other stamps are
-    /// ignored with a warning.
-    fn answer(&self, stamp: u64) -> Result<Action, GenerateError> {
+    /// Logs the first few skipped actions; the rest are only counted.
+    fn skip(&mut self, why: std::fmt::Arguments<'_>) {
+        self.ignored += 1;
+        if self.ignored <= 5 {
+            tracing::warn!("ignoring an action: {why}");
+        }
+    }
+
+    /// The command of the well-formed action answering the state stamped `stamp`.
+    fn answer(&mut self, stamp: u64) -> Result<Command, GenerateError> {
         let asked = Instant::now();
         loop {
             if self.stop.load(Ordering::SeqCst) {
@@ -162,12 +171,15 @@ impl DdsCommands {
                 )));
             }
             match take_next(&self.actions, Duration::from_millis(100)) {
-                Some(Ok(a)) if ns_from_time(&a.header.stamp) == stamp => return Ok(a),
-                Some(Ok(a)) => tracing::warn!(
-                    "ignoring action stamped {} ns while waiting for {stamp} ns",
+                Some(Ok(a)) if ns_from_time(&a.header.stamp) != stamp => self.skip(format_args!(
+                    "stamped {} ns while waiting for {stamp} ns",
                     ns_from_time(&a.header.stamp)
-                ),
-                Some(Err(e)) => tracing::warn!("undecodable action: {e:#}"),
+                )),
+                Some(Ok(a)) => match command_of(&a) {
+                    Ok(command) => return Ok(command),
+                    Err(problem) => self.skip(format_args!("at {stamp} ns: {problem}")),
+                },
+                Some(Err(e)) => self.skip(format_args!("undecodable: {e:#}")),
                 None => {}
             }
         }
@@ -179,19 +191,7 @@ impl CommandSource for DdsCommands {
     fn new_episode(&mut self) {}
 
     fn command(&mut self, state: &SimState, _k: u64) -> Result<Command, GenerateError> {
-        let action = self.answer(state.stamp_ns)?;
-        let joint_targets: [f64; ARM_DOF] =
-            action.joint_targets.as_slice().try_into().map_err(|_| {
-                GenerateError::Transport(format!(
-                    "action at {} ns has {} joint targets, expected {ARM_DOF}",
-                    state.stamp_ns,
-                    action.joint_targets.len()
-                ))
-            })?;
-        Ok(Command {
-            joint_targets,
-            magnet: action.magnet,
-        })
+        self.answer(state.stamp_ns)
     }
 }
 
@@ -212,6 +212,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         actions: node.subscription::<Action>(topics::ACTION, qos::recorded())?,
         timeout,
         stop: stop.clone(),
+        ignored: 0,
     };
     let mut sim = simulator(&run.options)?;
     states.robot_description(&RosString {
@@ -243,8 +244,9 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     }
     states.wait_until_recorded(timeout);
     tracing::info!(
-        "simulator done at sim time {:.3} s",
-        states.last_stamp as f64 * 1e-9
+        "simulator done at sim time {:.3} s; ignored {} stray or malformed actions",
+        states.last_stamp as f64 * 1e-9,
+        commands.ignored
     );
     Ok(())
 }

@@ -92,7 +92,7 @@ pub struct ExplainArgs {
     kernel_samples: Option<usize>,
     /// Relevance threshold: an action drives a state feature when its mean |SHAP| reaches
     /// this fraction of the feature's standard deviation.
-    #[arg(long, default_value_t = DEFAULT_THRESHOLD)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = DEFAULT_THRESHOLD)]
     threshold: f64,
     /// Action columns: realized or commanded (default: what the model was trained on,
     /// from metrics.json, else realized).
@@ -116,7 +116,7 @@ pub struct ExplainArgs {
     #[arg(long)]
     truth: Option<PathBuf>,
     /// Calibrated rule: an edge needs the lower bound of mean effect / model error above this.
-    #[arg(long, default_value_t = InfluenceSettings::default().kappa)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = InfluenceSettings::default().kappa)]
     kappa: f64,
     /// CAI: draws of each action from its marginal per observation.
     #[arg(long, default_value_t = InfluenceSettings::default().resamples)]

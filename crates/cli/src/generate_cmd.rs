@@ -39,11 +39,11 @@ pub struct GenerateArgs {
     #[arg(long)]
     overwrite: bool,
     /// Standard deviation of the exp1 joint targets, rad.
-    #[arg(long, default_value = run_default_text("sigma"))]
+    #[arg(allow_negative_numbers = true, long, default_value = run_default_text("sigma"))]
     sigma: f64,
     /// Scale of the URDF joint velocity limits (1 = the real iiwa; the paper's arm moved
     /// faster, see docs/RESULTS.md).
-    #[arg(long, default_value = run_default_text("velocity_scale"))]
+    #[arg(allow_negative_numbers = true, long, default_value = run_default_text("velocity_scale"))]
     velocity_scale: f64,
     /// Exp 2: move while switching the magnet (default), so the data can show that the
     /// magnet does not move the joints; `false` holds the arm still at every switch, as

@@ -33,10 +33,10 @@ pub struct InterveneArgs {
     #[arg(long, value_delimiter = ',', default_value = "0.1,0.5,1,2")]
     delta_scales: Vec<f64>,
     /// An effect counts when it exceeds this, in the feature's unit (m, rad).
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1e-6)]
     tolerance: f64,
     /// Edges active in fewer than this share of states (but some) are "rare": not scored.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 0.01)]
     min_fraction: f64,
     /// Worker threads (default: all cores).
     #[arg(long)]

@@ -18,7 +18,7 @@ pub struct PlayArgs {
     /// Bag directory (or .mcap file) to play.
     bag: PathBuf,
     /// Speed factor of the original timing; 0 = as fast as possible.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.0)]
     rate: f64,
     /// Also publish /clock from the bag's log times (for nodes with use_sim_time).
     #[arg(long)]
@@ -27,7 +27,7 @@ pub struct PlayArgs {
     #[arg(long, num_args = 1..)]
     topics: Vec<String>,
     /// Wait this long for subscribers to match before playing, s.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.0)]
     delay: f64,
 }
 

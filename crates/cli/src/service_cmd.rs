@@ -34,7 +34,7 @@ struct CallArgs {
     #[arg(long, default_value = "{}")]
     json: String,
     /// Seconds to wait for the server and for the reply.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 10.0)]
     timeout: f64,
 }
 

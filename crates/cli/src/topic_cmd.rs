@@ -41,23 +41,23 @@ struct PubArgs {
     #[arg(long, default_value_t = 1)]
     count: u64,
     /// Publishing rate in Hz.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 10.0)]
     rate: f64,
     /// Wait until this many subscribers matched before publishing.
     #[arg(long, default_value_t = 0)]
     wait_subscribers: usize,
     /// Give up waiting for subscribers after this many seconds.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 30.0)]
     timeout: f64,
     /// QoS profile: recorded, clock, latched, default, services, best_effort.
     #[arg(long, default_value = "default", value_parser = clap::builder::PossibleValuesParser::new(qos::PROFILE_NAMES))]
     qos: String,
     /// After subscribers matched, wait this long so their side of discovery completes too
     /// (a reader drops samples from writers it has not matched yet).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 0.5)]
     settle: f64,
     /// Keep the writer alive this long after the last sample so reliable delivery completes.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.0)]
     linger: f64,
 }
 
@@ -72,7 +72,7 @@ struct EchoArgs {
     #[arg(long, default_value_t = 0)]
     count: u64,
     /// Fail if `count` messages did not arrive within this many seconds (0 = no limit).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 0.0)]
     timeout: f64,
     /// QoS profile: recorded, clock, latched, default, services, best_effort.
     #[arg(long, default_value = "default", value_parser = clap::builder::PossibleValuesParser::new(qos::PROFILE_NAMES))]

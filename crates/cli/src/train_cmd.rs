@@ -57,7 +57,7 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 256)]
     batch_size: usize,
     /// Learning rate.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1e-3)]
     lr: f64,
     /// Learning-rate schedule: constant (the paper's), cosine (decay to 1 % over the
     /// epochs) or cosine:FLOOR. Cosine wins on paper-size runs, constant on short ones

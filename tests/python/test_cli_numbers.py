@@ -14,7 +14,9 @@ def tiny_bag(run_cli, tmp_path_factory):
 @pytest.mark.parametrize("args,message", [
     (["generate", "exp1", "--steps", "10", "--sigma", "-1"], "sigma must be a finite non-negative number"),
     (["generate", "exp1", "--steps", "10", "--velocity-scale", "-1"], "--velocity-scale must be a positive number, got -1"),
+    (["generate", "exp1", "--steps", "10", "--velocity-scale", "1e12"], "--velocity-scale must lie in [0.01, 1000]"),
     (["train", "--lr", "-1", "--bag", "BAG"], "learning rate must be a positive number, got -1"),
+    (["train", "--max-folds", "0", "--bag", "BAG"], "--max-folds must be at least 1"),
     (["play", "BAG", "--rate", "-1"], "--rate must be a non-negative number, got -1"),
     (["play", "BAG", "--delay", "-0.5"], "--delay must be non-negative"),
     (["intervene", "exp1", "--bag", "BAG", "--states", "5", "--tolerance", "-1"], "--tolerance must be a non-negative number, got -1"),

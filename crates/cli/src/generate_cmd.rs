@@ -86,10 +86,26 @@ impl GenerateArgs {
                 self.velocity_scale
             );
         }
+        within_graph_range("velocity_scale", self.velocity_scale)?;
         options.sim.velocity_scale = self.velocity_scale;
         options.exp2.move_while_switching = self.move_while_switching;
         Ok(options)
     }
+}
+
+/// Refuses `value` outside the range launch_scripts/graph.toml declares for run parameter
+/// `name`, as the nodes do for the same parameter.
+fn within_graph_range(name: &str, value: f64) -> anyhow::Result<()> {
+    let graph = causal_arm_protocol::graph::graph()?;
+    if let Some([lo, hi]) = graph.run_param(name).and_then(|p| p.range)
+        && !(lo..=hi).contains(&value)
+    {
+        anyhow::bail!(
+            "--{} must lie in [{lo}, {hi}] (its range in the graph file), got {value}",
+            name.replace('_', "-")
+        );
+    }
+    Ok(())
 }
 
 /// Progress bar with rate and ETA for `total` steps.

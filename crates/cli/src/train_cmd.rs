@@ -210,6 +210,9 @@ fn checked_options(args: &TrainArgs) -> anyhow::Result<CheckedArgs> {
     let lr_schedule: LrSchedule = args.lr_schedule.parse().map_err(anyhow::Error::msg)?;
     let expected = args.experiment;
     let requested = args.model.one();
+    if args.max_folds == Some(0) {
+        bail!("--max-folds must be at least 1 (leave it out to run every fold)");
+    }
     if args.eval_every == Some(0) {
         bail!("--eval-every must be at least 1");
     }

@@ -207,6 +207,17 @@ fn check_inputs<M: BatchModel + ?Sized>(
     if options.nsamples == Some(0) {
         return Err(ShapError::Option("nsamples must be at least 1".into()));
     }
+    // Sampled coalitions feed a regression with one unknown per input (less the efficiency
+    // constraint): fewer coalitions than inputs leave it underdetermined.
+    if let Some(n) = options.nsamples
+        && n_in > options.exact_max_inputs
+        && n < n_in
+        && (n_in > 30 || n < (1usize << n_in) - 2)
+    {
+        return Err(ShapError::Option(format!(
+            "nsamples {n} is fewer than the model's {n_in} inputs: the Kernel SHAP regression needs at least one coalition per input"
+        )));
+    }
     if options.batch_rows == 0 {
         return Err(ShapError::Option("batch_rows must be at least 1".into()));
     }

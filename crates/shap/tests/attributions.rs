@@ -687,6 +687,18 @@ fn bad_input_is_an_error_not_a_panic() {
         ..Default::default()
     };
     assert!(kernel_shap(&m, &background, &x, &zero_samples).is_err());
+    // Sampled coalitions fewer than the inputs: the regression is underdetermined.
+    let sampled = |n| KernelOptions {
+        nsamples: Some(n),
+        exact_max_inputs: 0,
+        ..Default::default()
+    };
+    let err = kernel_shap(&m, &background, &x, &sampled(2)).unwrap_err();
+    assert!(
+        err.to_string().contains("fewer than the model's 4 inputs"),
+        "{err}"
+    );
+    assert!(kernel_shap(&m, &background, &x, &sampled(4)).is_ok());
     // A model that returns the wrong number of values, or NaN.
     let short_model = FnModel::new(4, 2, |_: &[f32], n: usize| vec![0.0; n]);
     assert!(kernel_shap(&short_model, &background, &x, &opts).is_err());

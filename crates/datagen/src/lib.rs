@@ -185,8 +185,8 @@ impl Babbler {
 pub trait StepSink {
     /// Called once before the first step.
     fn robot_description(&mut self, urdf: &RosString) -> Result<(), GenerateError>;
-    /// All state messages of one step.
-    fn state(&mut self, stamp_ns: u64, messages: &StepMessages) -> Result<(), GenerateError>;
+    /// All state messages of one step (owned: a DDS sink publishes them without a copy).
+    fn state(&mut self, stamp_ns: u64, messages: StepMessages) -> Result<(), GenerateError>;
     /// The babbler's answer to that state.
     fn action(&mut self, stamp_ns: u64, action: &Action) -> Result<(), GenerateError>;
 }
@@ -244,7 +244,7 @@ pub fn drive(
         }
         let mut state = sim.state();
         for k in 0..plan.steps_per_episode {
-            sink.state(state.stamp_ns, &step_messages(&state, &joint_names))?;
+            sink.state(state.stamp_ns, step_messages(&state, &joint_names))?;
             let command = commands.command(&state, k)?;
             sink.action(state.stamp_ns, &action_message(&state, &command, k))?;
             state = sim.step(&command)?;
@@ -335,7 +335,7 @@ impl StepSink for BagSink {
         Ok(())
     }
 
-    fn state(&mut self, stamp_ns: u64, m: &StepMessages) -> Result<(), GenerateError> {
+    fn state(&mut self, stamp_ns: u64, m: StepMessages) -> Result<(), GenerateError> {
         let w = &mut self.writer;
         w.write(topics::JOINT_STATES, stamp_ns, &m.joint_states)?;
         w.write(topics::EF_POSE, stamp_ns, &m.ef_pose)?;

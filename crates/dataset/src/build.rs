@@ -131,10 +131,10 @@ fn seven(values: &[f64], what: &str, stamp: u64) -> Result<[f64; 7], String> {
     })
 }
 
-/// Reads one bag into steps, checking the step protocol.
 /// Files one decoded message into its step (see `StepJoiner::insert`).
 type PutPart = Box<dyn FnOnce(&mut Partial) -> bool>;
 
+/// Reads one bag into steps, checking the step protocol.
 struct StepReader<'a> {
     reader: &'a BagReader,
     bag: PathBuf,

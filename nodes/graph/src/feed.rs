@@ -14,8 +14,9 @@ use serde::de::DeserializeOwned;
 
 use crate::take_next;
 
-/// Samples logged in full before the rest are only counted.
-const LOGGED: u64 = 5;
+/// Stray samples of one kind logged in full before the rest are only counted (the
+/// feeds and the simulator's action wait).
+pub(crate) const LOGGED: u64 = 5;
 
 /// One topic's samples into a joiner of `P`.
 pub trait Feed<P> {

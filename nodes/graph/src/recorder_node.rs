@@ -56,7 +56,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         // Older parts may still be in flight on another topic: write strictly in order.
         while have_description && let Some((stamp, parts)) = joiner.pop_complete(true) {
             let (messages, action) = parts.into_step().expect("complete");
-            sink.state(stamp, &messages)?;
+            sink.state(stamp, messages)?;
             sink.action(stamp, &action)?;
             written += 1;
             last_written = Some(stamp);

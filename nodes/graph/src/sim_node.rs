@@ -20,6 +20,7 @@ use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::{Command, SimState, StepMessages, command_of, ns_from_time, topics};
 use ros2_client::{Publisher, Subscription};
 
+use crate::feed::LOGGED;
 use crate::flow::AckWindow;
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag, take_next};
 
@@ -118,9 +119,8 @@ impl StepSink for DdsStatePublisher {
         publish(&self.description, urdf.clone(), topics::ROBOT_DESCRIPTION)
     }
 
-    fn state(&mut self, stamp_ns: u64, m: &StepMessages) -> Result<(), GenerateError> {
+    fn state(&mut self, stamp_ns: u64, m: StepMessages) -> Result<(), GenerateError> {
         self.wait_for_window(stamp_ns)?;
-        let m = m.clone();
         publish(&self.joint_states, m.joint_states, topics::JOINT_STATES)?;
         publish(&self.ef_pose, m.ef_pose, topics::EF_POSE)?;
         publish(&self.object_pose, m.object_pose, topics::OBJECT_POSE)?;
@@ -151,7 +151,7 @@ impl DdsCommands {
     /// Logs the first few skipped actions; the rest are only counted.
     fn skip(&mut self, why: std::fmt::Arguments<'_>) {
         self.ignored += 1;
-        if self.ignored <= 5 {
+        if self.ignored <= LOGGED {
             tracing::warn!("ignoring an action: {why}");
         }
     }

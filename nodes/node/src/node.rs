@@ -51,7 +51,7 @@ fn dds_err(what: impl Into<String>) -> impl FnOnce(ros2_client::CreateError) -> 
 }
 
 /// How long one wait for a DDS match lasts before it is re-armed (see
-/// [`RosNode::wait_for_service`]).
+/// [`crate::runtime::wait_rearmed`]).
 const REARM: Duration = Duration::from_millis(250);
 
 /// A running node: context, ros2-client node (with its spinner serving parameters and
@@ -154,18 +154,11 @@ impl RosNode {
         settle: Duration,
     ) -> bool {
         let start = std::time::Instant::now();
-        let matched = loop {
-            // ros2-client's wait listens to an 8-slot event channel that drops events when
-            // full (a busy machine, a big graph), so one wait can miss the match for good.
-            // Short waits re-arm it, and each re-reads the current match state first.
-            let wait = client.wait_for_service(self.node_ref());
-            if crate::runtime::block_on_timeout(wait, REARM).is_some() {
-                break true;
-            }
-            if start.elapsed() > timeout {
-                break false;
-            }
-        };
+        let matched = crate::runtime::wait_rearmed(
+            || client.wait_for_service(self.node_ref()),
+            REARM,
+            || start.elapsed() > timeout,
+        );
         if matched {
             std::thread::sleep(settle);
         }
@@ -209,13 +202,8 @@ impl RosNode {
         let node = self.node_ref();
         // The first match goes through ros2-client's own wait, which also registers the
         // publisher with the node's graph tracking (counting before that logs errors).
-        // Re-armed like `wait_for_service`: one wait may miss a dropped match event.
-        while crate::runtime::block_on_timeout(publisher.wait_for_subscription(node), REARM)
-            .is_none()
-        {
-            if gave_up() {
-                return false;
-            }
+        if !crate::runtime::wait_rearmed(|| publisher.wait_for_subscription(node), REARM, gave_up) {
+            return false;
         }
         while publisher.get_subscription_count(node) < count {
             if gave_up() {

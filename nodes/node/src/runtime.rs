@@ -29,9 +29,25 @@ pub fn block_on_timeout<F: Future>(future: F, timeout: Duration) -> Option<F::Ou
     runtime().block_on(async { tokio::time::timeout(timeout, future).await.ok() })
 }
 
-/// Runs `future` to completion on the runtime.
-pub fn block_on<F: Future>(future: F) -> F::Output {
-    runtime().block_on(future)
+/// Waits for a DDS match: `arm()` makes one ros2-client wait, which is given `rearm` and
+/// then made afresh, until one completes (`true`) or `give_up()` says so (`false`).
+///
+/// ros2-client's waits listen to an 8-slot event channel whose sender drops events when it
+/// is full (a busy machine, a big graph), so a single wait can miss its match for good;
+/// each fresh wait re-reads the current match state before it listens.
+pub fn wait_rearmed<F: Future>(
+    mut arm: impl FnMut() -> F,
+    rearm: Duration,
+    give_up: impl Fn() -> bool,
+) -> bool {
+    loop {
+        if block_on_timeout(arm(), rearm).is_some() {
+            return true;
+        }
+        if give_up() {
+            return false;
+        }
+    }
 }
 
 /// A flag set by the first SIGINT or SIGTERM, so nodes stop cleanly (the recorder then
@@ -78,6 +94,33 @@ mod tests {
         let out = block_on_timeout(std::future::pending::<()>(), Duration::from_millis(50));
         assert!(out.is_none());
         assert!(started.elapsed() >= Duration::from_millis(50));
+    }
+
+    #[test]
+    fn a_rearmed_wait_sees_a_match_a_single_wait_would_miss() {
+        // The first two waits never complete (their event was dropped); the third sees the
+        // match state directly.
+        let tries = std::cell::Cell::new(0);
+        let matched = wait_rearmed(
+            || {
+                tries.set(tries.get() + 1);
+                let ready = tries.get() >= 3;
+                async move {
+                    if !ready {
+                        std::future::pending::<()>().await;
+                    }
+                }
+            },
+            Duration::from_millis(10),
+            || false,
+        );
+        assert!(matched);
+        assert_eq!(tries.get(), 3);
+        assert!(!wait_rearmed(
+            std::future::pending::<()>,
+            Duration::from_millis(5),
+            || true
+        ));
     }
 
     #[test]

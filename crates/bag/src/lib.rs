@@ -7,13 +7,18 @@
 //! `ros2 bag record -s mcap` writes them, so `ros2 bag`, rosbags and mcap tools read it.
 //!
 //! Crash safety: chunks are self-contained, so a writer killed mid-run leaves a file whose
-//! complete chunks [`BagReader`] (and `mcap recover`) still read; `metadata.yaml` is
-//! written atomically at the end and the reader does not need it.
+//! complete chunks [`BagReader`] (and `mcap recover`) still read, and `metadata.yaml` is
+//! written atomically when the bag opens and after every chunk, so standard readers open
+//! a killed run's bag. Reading is checked (framing, sizes, CRCs, indexes, counts): damage
+//! is an error naming file and byte, never read as less data ([`ReadPolicy`]).
 
+mod check;
+mod metadata;
 mod reader;
 mod writer;
 
-pub use reader::{BagReader, RawMessage, TopicInfo};
+pub use check::Damage;
+pub use reader::{BagReader, RawMessage, ReadPolicy, TopicInfo};
 pub use writer::{
     BAG_METADATA_NAME, BagOptions, BagSummary, BagWriter, Compression, existing_bag,
     offered_qos_yaml,
@@ -71,6 +76,19 @@ pub enum BagError {
         log_time_ns: u64,
         /// What is wrong.
         problem: String,
+    },
+    /// The MCAP file is damaged (not merely cut short by a crash).
+    #[error(
+        "{path}: damaged at {damage}{}; `causal-arm bag check` lists the damage, `causal-arm bag recover` rebuilds the bag from what is intact, --salvage reads past it",
+        if *more > 0 { format!(" (and {more} more places)") } else { String::new() }
+    )]
+    Damaged {
+        /// File involved.
+        path: PathBuf,
+        /// The first damaged place.
+        damage: Damage,
+        /// How many more damaged places follow.
+        more: usize,
     },
     /// `metadata.yaml` is missing pieces or malformed.
     #[error("{path}: {problem}")]

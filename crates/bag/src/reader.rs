@@ -4,9 +4,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use causal_arm_msgs::RosMessage;
-use enumset::enum_set;
 
 use crate::BagError;
+use crate::check::{self, Damage, Scan, Span};
 
 /// One topic of a bag.
 #[derive(Debug, Clone, PartialEq)]
@@ -54,13 +54,42 @@ impl std::ops::Deref for Bytes {
     }
 }
 
+/// How a reader treats damage (not a crash tail, which is always read up to its last
+/// complete chunk with a warning).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ReadPolicy {
+    /// Any damage is an error naming the file and the place: data is never silently less.
+    #[default]
+    Strict,
+    /// Damaged chunks are skipped with a warning and everything intact is read (`--salvage`).
+    Salvage,
+}
+
+static SALVAGE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+impl ReadPolicy {
+    /// Makes [`BagReader::open`] use `self` in this process: set once from the command
+    /// line (`--salvage`), so every library that opens bags follows the user's choice.
+    pub fn set_process_default(self) {
+        SALVAGE.store(self == Self::Salvage, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// The policy set by [`ReadPolicy::set_process_default`] (strict unless changed).
+    pub fn process_default() -> Self {
+        if SALVAGE.load(std::sync::atomic::Ordering::Relaxed) {
+            Self::Salvage
+        } else {
+            Self::Strict
+        }
+    }
+}
+
 /// A bag opened for reading (the MCAP file is memory-mapped; do not modify it while open).
 pub struct BagReader {
     mcap_path: PathBuf,
     bytes: Bytes,
+    scan: Scan,
     topics: Vec<TopicInfo>,
-    truncation: Option<String>,
-    message_count: u64,
 }
 
 fn find_mcap(path: &Path) -> Result<PathBuf, BagError> {
@@ -77,23 +106,87 @@ fn find_mcap(path: &Path) -> Result<PathBuf, BagError> {
         .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
         .collect();
     files.sort();
-    match files.len() {
-        1 => Ok(files.remove(0)),
-        0 => Err(BagError::Metadata {
-            path: path.to_owned(),
-            problem: "no .mcap file in the bag directory".into(),
-        }),
-        n => Err(BagError::Metadata {
-            path: path.to_owned(),
-            problem: format!("{n} .mcap files; split bags are not supported yet"),
-        }),
+    let file = match files.len() {
+        1 => files.remove(0),
+        0 => {
+            return Err(BagError::Metadata {
+                path: path.to_owned(),
+                problem: "no .mcap file in the bag directory".into(),
+            });
+        }
+        n => {
+            return Err(BagError::Metadata {
+                path: path.to_owned(),
+                problem: format!("{n} .mcap files; split bags are not supported yet"),
+            });
+        }
+    };
+    if !file.is_file() {
+        return Err(BagError::Metadata {
+            path: file,
+            problem: "is not a regular file".into(),
+        });
     }
+    Ok(file)
 }
 
 impl BagReader {
-    /// Opens a bag directory or a bare `.mcap` file. A file without summary (the writer
-    /// was killed) is read up to its last complete record; see [`BagReader::truncation`].
+    /// Opens a bag directory or a bare `.mcap` file with the process's [`ReadPolicy`].
+    /// A file cut short by a crash is read up to its last complete chunk (see
+    /// [`BagReader::truncation`]); damage anywhere else is an error unless salvaging.
     pub fn open(path: &Path) -> Result<Self, BagError> {
+        Self::open_with(path, ReadPolicy::process_default())
+    }
+
+    /// [`BagReader::open`] with an explicit policy.
+    pub fn open_with(path: &Path, policy: ReadPolicy) -> Result<Self, BagError> {
+        let reader = Self::open_unchecked(path)?;
+        if path.is_dir()
+            && let Err(e) = crate::metadata::check(path, &reader)
+        {
+            if policy == ReadPolicy::Strict {
+                return Err(e);
+            }
+            tracing::warn!("salvaging past: {e}");
+        }
+        let damage = &reader.scan.damage;
+        if let Some(first) = damage.first() {
+            if policy == ReadPolicy::Strict {
+                return Err(BagError::Damaged {
+                    path: reader.mcap_path.clone(),
+                    damage: first.clone(),
+                    more: damage.len() - 1,
+                });
+            }
+            for d in damage {
+                tracing::warn!(
+                    "{}: salvaging past damage at {d}",
+                    reader.mcap_path.display()
+                );
+            }
+        }
+        if let Some(t) = reader.truncation() {
+            tracing::warn!(
+                "{}: incomplete bag ({t}); reading its {} complete messages",
+                reader.mcap_path.display(),
+                reader.message_count()
+            );
+        }
+        if reader.message_count() == 0 && !reader.scan.finished {
+            return Err(BagError::Metadata {
+                path: reader.mcap_path.clone(),
+                problem: format!(
+                    "no readable messages ({})",
+                    reader.truncation().unwrap_or("the file is damaged")
+                ),
+            });
+        }
+        Ok(reader)
+    }
+
+    /// Maps and scans the file without judging it: what `bag check` and `bag recover`
+    /// build their reports from.
+    pub fn open_unchecked(path: &Path) -> Result<Self, BagError> {
         let mcap_path = find_mcap(path)?;
         let io = |action: &'static str| {
             let path = mcap_path.clone();
@@ -112,75 +205,14 @@ impl BagReader {
             // read (a writer still appending only adds bytes past the mapped length).
             Bytes::Mapped(unsafe { memmap2::Mmap::map(&file) }.map_err(io("mapping"))?)
         };
-        let mut reader = Self {
+        let scan = check::scan(&bytes);
+        let topics = topics_of(&scan);
+        Ok(Self {
             mcap_path,
             bytes,
-            topics: Vec::new(),
-            truncation: None,
-            message_count: 0,
-        };
-        reader.scan()?;
-        Ok(reader)
-    }
-
-    fn stream(&self) -> Result<mcap::MessageStream<'_>, BagError> {
-        mcap::MessageStream::new_with_options(
-            &self.bytes,
-            enum_set!(mcap::read::Options::IgnoreEndMagic),
-        )
-        .map_err(|e| BagError::Mcap {
-            path: self.mcap_path.clone(),
-            message: e.to_string(),
+            scan,
+            topics,
         })
-    }
-
-    fn scan(&mut self) -> Result<(), BagError> {
-        let mut topics: BTreeMap<String, TopicInfo> = BTreeMap::new();
-        let mut count = 0;
-        let mut truncation = None;
-        for item in self.stream()? {
-            match item {
-                Ok(m) => {
-                    count += 1;
-                    let entry =
-                        topics
-                            .entry(m.channel.topic.clone())
-                            .or_insert_with(|| TopicInfo {
-                                name: m.channel.topic.clone(),
-                                ros_type: m
-                                    .channel
-                                    .schema
-                                    .as_ref()
-                                    .map(|s| s.name.clone())
-                                    .unwrap_or_default(),
-                                message_count: 0,
-                                offered_qos: m
-                                    .channel
-                                    .metadata
-                                    .get("offered_qos_profiles")
-                                    .cloned()
-                                    .unwrap_or_default(),
-                            });
-                    entry.message_count += 1;
-                }
-                Err(e) => {
-                    truncation = Some(format!("stopped after {count} messages: {e}"));
-                    break;
-                }
-            }
-        }
-        if truncation.is_none() && mcap::read::footer(&self.bytes).is_err() {
-            truncation = Some(format!(
-                "no footer (writer did not finish); read {count} messages"
-            ));
-        }
-        if let Some(t) = &truncation {
-            tracing::warn!("{}: incomplete bag, {t}", self.mcap_path.display());
-        }
-        self.topics = topics.into_values().collect();
-        self.truncation = truncation;
-        self.message_count = count;
-        Ok(())
     }
 
     /// The MCAP file read.
@@ -195,67 +227,97 @@ impl BagReader {
 
     /// Total messages readable.
     pub fn message_count(&self) -> u64 {
-        self.message_count
+        self.scan.message_count
     }
 
     /// Why the file ended early, if it did (a crashed writer); `None` for a finished bag.
     pub fn truncation(&self) -> Option<&str> {
-        self.truncation.as_deref()
+        self.scan.tail.as_deref()
+    }
+
+    /// Everything damaged in the MCAP file, in file order (empty for a sound file).
+    pub fn damage(&self) -> &[Damage] {
+        &self.scan.damage
+    }
+
+    /// Whether the file has its footer and summary (the writer finished it).
+    pub fn finished(&self) -> bool {
+        self.scan.finished
+    }
+
+    /// Chunks in the file, readable or not.
+    pub fn chunk_count(&self) -> usize {
+        self.scan.chunk_count
+    }
+
+    /// Messages known (from message indexes) to sit in damaged chunks.
+    pub fn lost_known(&self) -> u64 {
+        self.scan.lost_known
     }
 
     /// Every readable message in file order (= log-time order for our bags).
     pub fn messages(&self) -> impl Iterator<Item = Result<RawMessage, BagError>> + '_ {
-        let limit = self.message_count;
-        let stream = self.stream();
-        let (ok, err) = match stream {
-            Ok(s) => (Some(s), None),
-            Err(e) => (None, Some(e)),
+        self.scan
+            .spans
+            .iter()
+            .flat_map(move |span| match self.span_messages(span) {
+                Ok(messages) => messages.into_iter().map(Ok).collect::<Vec<_>>(),
+                Err(e) => vec![Err(e)],
+            })
+    }
+
+    fn span_messages(&self, span: &Span) -> Result<Vec<RawMessage>, BagError> {
+        let start = (span.offset + 9) as usize;
+        let body = &self.bytes[start..start + span.len as usize];
+        let damaged = |problem: String| BagError::Damaged {
+            path: self.mcap_path.clone(),
+            damage: Damage {
+                offset: span.offset,
+                chunk: None,
+                problem: format!("{problem} (the file changed while open?)"),
+            },
+            more: 0,
         };
-        err.map(Err)
-            .into_iter()
-            .chain(ok.into_iter().flatten().take(limit as usize).map(|item| {
-                item.map(|m| RawMessage {
-                    topic: m.channel.topic.clone(),
-                    ros_type: m
-                        .channel
-                        .schema
-                        .as_ref()
-                        .map(|s| s.name.clone())
-                        .unwrap_or_default(),
-                    log_time_ns: m.log_time,
-                    publish_time_ns: m.publish_time,
-                    sequence: m.sequence,
-                    data: m.data.into_owned(),
-                })
-                .map_err(|e| BagError::Mcap {
-                    path: self.mcap_path.clone(),
-                    message: e.to_string(),
-                })
-            }))
+        if !span.chunk {
+            return self.message(body).map(|m| vec![m]).map_err(damaged);
+        }
+        let (_, records) = check::open_chunk(body).map_err(damaged)?;
+        let mut out = Vec::new();
+        for item in check::Records::new(&records, 0) {
+            let (_, opcode, body) = item.map_err(|(_, p)| damaged(p))?;
+            if opcode == mcap::records::op::MESSAGE {
+                out.push(self.message(body).map_err(damaged)?);
+            }
+        }
+        Ok(out)
+    }
+
+    fn message(&self, body: &[u8]) -> Result<RawMessage, String> {
+        let Ok(mcap::records::Record::Message { header, data }) =
+            mcap::parse_record(mcap::records::op::MESSAGE, body)
+        else {
+            return Err("message record unreadable".into());
+        };
+        let channel = self
+            .scan
+            .channels
+            .get(&header.channel_id)
+            .ok_or_else(|| format!("message on undefined channel {}", header.channel_id))?;
+        Ok(RawMessage {
+            topic: channel.topic.clone(),
+            ros_type: channel.ros_type.clone(),
+            log_time_ns: header.log_time,
+            publish_time_ns: header.publish_time,
+            sequence: header.sequence,
+            data: data.into_owned(),
+        })
     }
 
     /// What the writer said produced the bag ([`crate::BagOptions::custom_data`]): read
     /// from the metadata record at the start of the file, so crashed bags have it too.
     /// Empty for bags written by other tools.
     pub fn custom_data(&self) -> BTreeMap<String, String> {
-        let Ok(records) = mcap::read::LinearReader::new_with_options(
-            &self.bytes,
-            enum_set!(mcap::read::Options::IgnoreEndMagic),
-        ) else {
-            return BTreeMap::new();
-        };
-        for record in records {
-            match record {
-                Ok(mcap::records::Record::Metadata(m)) if m.name == crate::BAG_METADATA_NAME => {
-                    return m.metadata;
-                }
-                // Our writer puts the record before any data; stop at the first chunk.
-                Ok(mcap::records::Record::Chunk { .. } | mcap::records::Record::Message { .. })
-                | Err(_) => break,
-                Ok(_) => {}
-            }
-        }
-        BTreeMap::new()
+        self.scan.custom_data.clone()
     }
 
     /// Decodes `raw` as `M`, checking the stored type.
@@ -275,4 +337,25 @@ impl BagReader {
             problem: e.to_string(),
         })
     }
+}
+
+/// Topics in name order, with counts from the scan.
+fn topics_of(scan: &Scan) -> Vec<TopicInfo> {
+    let mut topics: BTreeMap<String, TopicInfo> = BTreeMap::new();
+    for (id, def) in &scan.channels {
+        let count = scan.per_channel.get(id).copied().unwrap_or(0);
+        let entry = topics
+            .entry(def.topic.clone())
+            .or_insert_with(|| TopicInfo {
+                name: def.topic.clone(),
+                ros_type: def.ros_type.clone(),
+                message_count: 0,
+                offered_qos: def.offered_qos.clone(),
+            });
+        entry.message_count += count;
+    }
+    topics
+        .into_values()
+        .filter(|t| t.message_count > 0)
+        .collect()
 }

@@ -104,6 +104,29 @@ pub struct BagWriter {
     first_ns: Option<u64>,
     last_ns: u64,
     custom_data: BTreeMap<String, String>,
+    /// Target uncompressed bytes per chunk; the writer closes chunks itself so it can
+    /// update `metadata.yaml` after each one lands.
+    chunk_size: u64,
+    /// Uncompressed bytes in the open chunk.
+    chunk_bytes: u64,
+}
+
+/// Bytes of a message record besides its data (framing and header).
+const MESSAGE_RECORD_OVERHEAD: u64 = 9 + 22;
+
+/// An MCAP failure with its cause: the OS error ("No space left on device") is the
+/// `source` of mcap's "I/O error from writing" and must reach the user.
+fn mcap_error(path: &Path, e: mcap::McapError) -> BagError {
+    let mut message = e.to_string();
+    let mut source = std::error::Error::source(&e);
+    while let Some(cause) = source {
+        message = format!("{message}: {cause}");
+        source = cause.source();
+    }
+    BagError::Mcap {
+        path: path.to_owned(),
+        message,
+    }
 }
 
 fn io<'a>(path: &'a Path, action: &'static str) -> impl FnOnce(std::io::Error) -> BagError + 'a {
@@ -162,24 +185,18 @@ impl BagWriter {
             .profile("ros2")
             .library(concat!("causal-arm ", env!("CARGO_PKG_VERSION")))
             .compression(compression)
-            .chunk_size(Some(options.chunk_size))
+            .chunk_size(None)
             .create(BufWriter::with_capacity(1 << 20, file))
-            .map_err(|e| BagError::Mcap {
-                path: mcap_path.clone(),
-                message: e.to_string(),
-            })?;
+            .map_err(|e| mcap_error(&mcap_path, e))?;
         if !options.custom_data.is_empty() {
             writer
                 .write_metadata(&mcap::records::Metadata {
                     name: BAG_METADATA_NAME.to_owned(),
                     metadata: options.custom_data.clone(),
                 })
-                .map_err(|e| BagError::Mcap {
-                    path: mcap_path.clone(),
-                    message: e.to_string(),
-                })?;
+                .map_err(|e| mcap_error(&mcap_path, e))?;
         }
-        Ok(Self {
+        let bag = Self {
             dir: dir.to_owned(),
             mcap_path,
             custom_data: options.custom_data,
@@ -187,14 +204,16 @@ impl BagWriter {
             topics: BTreeMap::new(),
             first_ns: None,
             last_ns: 0,
-        })
+            chunk_size: options.chunk_size.max(1),
+            chunk_bytes: 0,
+        };
+        // As rosbag2 does: the index exists from the start, so a killed run's bag opens.
+        bag.write_metadata(&bag.summary())?;
+        Ok(bag)
     }
 
     fn mcap_err(&self, e: mcap::McapError) -> BagError {
-        BagError::Mcap {
-            path: self.mcap_path.clone(),
-            message: e.to_string(),
-        }
+        mcap_error(&self.mcap_path, e)
     }
 
     /// Registers `topic` with type `M` and the publisher's offered QoS (see [`offered_qos_yaml`]).
@@ -220,10 +239,7 @@ impl BagWriter {
         let writer = self.writer.as_mut().expect("writer lives until finish");
         let schema = writer
             .add_schema(M::ROS_TYPE, "ros2msg", M::definition().as_bytes())
-            .map_err(|e| BagError::Mcap {
-                path: self.mcap_path.clone(),
-                message: e.to_string(),
-            })?;
+            .map_err(|e| mcap_error(&self.mcap_path, e))?;
         let metadata = BTreeMap::from([
             (
                 "offered_qos_profiles".to_owned(),
@@ -233,10 +249,7 @@ impl BagWriter {
         ]);
         let channel_id = writer
             .add_channel(schema, topic, "cdr", &metadata)
-            .map_err(|e| BagError::Mcap {
-                path: self.mcap_path.clone(),
-                message: e.to_string(),
-            })?;
+            .map_err(|e| mcap_error(&self.mcap_path, e))?;
         self.topics.insert(
             topic.to_owned(),
             TopicEntry {
@@ -304,7 +317,40 @@ impl BagWriter {
             .as_mut()
             .expect("writer lives until finish")
             .write_to_known_channel(&header, cdr);
-        result.map_err(|e| self.mcap_err(e))
+        result.map_err(|e| self.mcap_err(e))?;
+        self.chunk_bytes += cdr.len() as u64 + MESSAGE_RECORD_OVERHEAD;
+        if self.chunk_bytes >= self.chunk_size {
+            self.close_chunk()?;
+        }
+        Ok(())
+    }
+
+    /// Ends the open chunk, hands it to the OS, and brings `metadata.yaml` up to it: the
+    /// index never counts a message the file does not hold, even after a SIGKILL.
+    fn close_chunk(&mut self) -> Result<(), BagError> {
+        self.chunk_bytes = 0;
+        let result = self
+            .writer
+            .as_mut()
+            .expect("writer lives until finish")
+            .flush();
+        result.map_err(|e| self.mcap_err(e))?;
+        self.write_metadata(&self.summary())
+    }
+
+    /// What the bag holds so far.
+    fn summary(&self) -> BagSummary {
+        BagSummary {
+            dir: self.dir.clone(),
+            mcap_path: self.mcap_path.clone(),
+            message_count: self.topics.values().map(|t| t.count).sum(),
+            per_topic: self
+                .topics
+                .iter()
+                .map(|(k, t)| (k.clone(), t.count))
+                .collect(),
+            duration_ns: self.last_ns.saturating_sub(self.first_ns.unwrap_or(0)),
+        }
     }
 
     /// Messages written on `topic` so far.
@@ -331,17 +377,7 @@ impl BagWriter {
             .get_ref()
             .sync_all()
             .map_err(io(&self.mcap_path, "syncing"))?;
-        let summary = BagSummary {
-            dir: self.dir.clone(),
-            mcap_path: self.mcap_path.clone(),
-            message_count: self.topics.values().map(|t| t.count).sum(),
-            per_topic: self
-                .topics
-                .iter()
-                .map(|(k, t)| (k.clone(), t.count))
-                .collect(),
-            duration_ns: self.last_ns.saturating_sub(self.first_ns.unwrap_or(0)),
-        };
+        let summary = self.summary();
         self.write_metadata(&summary)?;
         Ok(summary)
     }

@@ -1,9 +1,12 @@
-//! `causal-arm bag info BAG`: what a bag holds (like `ros2 bag info`), as JSON, including
-//! whether the file was cut short by a crash and how much of it is readable.
+//! `causal-arm bag info|check|recover`: what a bag holds (like `ros2 bag info`), whether
+//! it is sound (like `mcap doctor`), and a new bag from what is intact (like `mcap recover`
+//! and `ros2 bag reindex`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use causal_arm_bag::BagReader;
+use anyhow::{Context as _, bail};
+use causal_arm_bag::{BagOptions, BagReader, BagWriter, ReadPolicy};
+use causal_arm_msgs::{MessageTypeVisitor, RosMessage, visit_message_type};
 use serde_json::json;
 
 /// `causal-arm bag …`
@@ -20,36 +23,222 @@ enum BagCommand {
         /// Bag directory or .mcap file.
         bag: PathBuf,
     },
+    /// Checks everything (record framing, chunk sizes and CRCs, message indexes, section
+    /// CRCs, summary and metadata.yaml counts, step completeness); prints a JSON report and
+    /// exits 1 unless the bag is sound and finished.
+    Check {
+        /// Bag directory or .mcap file.
+        bag: PathBuf,
+    },
+    /// Writes a new bag (MCAP with summary, and metadata.yaml) from every intact chunk of
+    /// BAG, and reports what was lost.
+    Recover {
+        /// Damaged or cut-short bag directory or .mcap file.
+        bag: PathBuf,
+        /// New bag directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Replace a bag already at --out.
+        #[arg(long)]
+        overwrite: bool,
+    },
 }
 
 /// Runs `causal-arm bag …`.
 pub fn run(args: &BagArgs) -> anyhow::Result<()> {
     match &args.command {
-        BagCommand::Info { bag } => {
-            let reader = BagReader::open(bag)?;
-            let mut first = None;
-            let mut last = None;
-            for raw in reader.messages() {
-                let raw = raw?;
-                first.get_or_insert(raw.log_time_ns);
-                last = Some(raw.log_time_ns);
-            }
-            let topics: Vec<_> = reader
-                .topics()
-                .iter()
-                .map(|t| json!({"name": t.name, "type": t.ros_type, "message_count": t.message_count}))
-                .collect();
-            let info = json!({
-                "path": reader.path(),
-                "message_count": reader.message_count(),
-                "start_ns": first,
-                "end_ns": last,
-                "complete": reader.truncation().is_none(),
-                "truncation": reader.truncation(),
-                "topics": topics,
-            });
-            println!("{}", serde_json::to_string_pretty(&info)?);
-            Ok(())
-        }
+        BagCommand::Info { bag } => info(bag),
+        BagCommand::Check { bag } => check(bag),
+        BagCommand::Recover {
+            bag,
+            out,
+            overwrite,
+        } => recover(bag, out, *overwrite),
     }
+}
+
+fn info(bag: &Path) -> anyhow::Result<()> {
+    let reader = BagReader::open(bag)?;
+    let mut first = None;
+    let mut last = None;
+    for raw in reader.messages() {
+        let raw = raw?;
+        first.get_or_insert(raw.log_time_ns);
+        last = Some(raw.log_time_ns);
+    }
+    let info = json!({
+        "path": reader.path(),
+        "message_count": reader.message_count(),
+        "start_ns": first,
+        "end_ns": last,
+        "complete": reader.truncation().is_none() && reader.damage().is_empty(),
+        "truncation": reader.truncation(),
+        "damage": damage_json(&reader),
+        "topics": topics_json(&reader),
+    });
+    println!("{}", serde_json::to_string_pretty(&info)?);
+    Ok(())
+}
+
+fn topics_json(reader: &BagReader) -> Vec<serde_json::Value> {
+    reader
+        .topics()
+        .iter()
+        .map(|t| json!({"name": t.name, "type": t.ros_type, "message_count": t.message_count}))
+        .collect()
+}
+
+fn damage_json(reader: &BagReader) -> Vec<serde_json::Value> {
+    reader
+        .damage()
+        .iter()
+        .map(|d| json!({"offset": d.offset, "chunk": d.chunk, "problem": d.problem}))
+        .collect()
+}
+
+fn check(bag: &Path) -> anyhow::Result<()> {
+    let reader = BagReader::open_unchecked(bag)?;
+    // metadata.yaml and the file's own damage, as a strict reader judges them.
+    let verdict = BagReader::open_with(bag, ReadPolicy::Strict).err();
+    let steps = if verdict.is_none() {
+        match causal_arm_dataset::from_bag(bag, None, causal_arm_dataset::ActionSource::Realized) {
+            Ok(data) => json!({"transitions": data.rows()}),
+            Err(e) => json!({"error": format!("{e:#}")}),
+        }
+    } else {
+        serde_json::Value::Null
+    };
+    let sound = verdict.is_none() && reader.finished() && steps.get("error").is_none();
+    let report = json!({
+        "path": reader.path(),
+        "sound": sound,
+        "finished": reader.finished(),
+        "chunks": reader.chunk_count(),
+        "readable_messages": reader.message_count(),
+        "messages_in_damaged_chunks": reader.lost_known(),
+        "truncation": reader.truncation(),
+        "damage": damage_json(&reader),
+        "error": verdict.as_ref().map(|e| e.to_string()),
+        "steps": steps,
+        "topics": topics_json(&reader),
+    });
+    println!("{}", serde_json::to_string_pretty(&report)?);
+    if let Some(e) = verdict {
+        bail!("{e}");
+    }
+    if let Some(e) = steps.get("error") {
+        bail!(
+            "{}: steps: {}",
+            reader.path().display(),
+            e.as_str().unwrap_or_default()
+        );
+    }
+    if let Some(t) = reader.truncation() {
+        bail!(
+            "{}: not finished ({t}); `causal-arm bag recover` writes a finished copy",
+            reader.path().display()
+        );
+    }
+    Ok(())
+}
+
+/// Registers one topic of the recovered bag with its type's full definition.
+struct AddTopic<'a> {
+    writer: &'a mut BagWriter,
+    topic: &'a str,
+    qos: &'a str,
+}
+
+impl MessageTypeVisitor for AddTopic<'_> {
+    type Output = Result<(), causal_arm_bag::BagError>;
+    fn visit<M: RosMessage>(self) -> Self::Output {
+        self.writer.add_topic::<M>(self.topic, self.qos)
+    }
+}
+
+fn recover(bag: &Path, out: &Path, overwrite: bool) -> anyhow::Result<()> {
+    let reader = BagReader::open_unchecked(bag)?;
+    if reader.message_count() == 0 {
+        bail!("{}: nothing intact to recover", reader.path().display());
+    }
+    let mut writer = BagWriter::create(
+        out,
+        BagOptions {
+            custom_data: reader.custom_data(),
+            overwrite,
+            ..BagOptions::default()
+        },
+    )?;
+    for topic in reader.topics() {
+        let add = AddTopic {
+            writer: &mut writer,
+            topic: &topic.name,
+            qos: &topic.offered_qos,
+        };
+        visit_message_type(&topic.ros_type, add)
+            .map_err(|e| anyhow::anyhow!("{}: topic {}: {e}", bag.display(), topic.name))??;
+    }
+    let mut messages = reader.messages().collect::<Result<Vec<_>, _>>()?;
+    let dropped = if reader.truncation().is_some() {
+        drop_partial_last_stamp(&mut messages)
+    } else {
+        0
+    };
+    for raw in &messages {
+        writer
+            .write_cdr(&raw.topic, raw.log_time_ns, raw.publish_time_ns, &raw.data)
+            .with_context(|| format!("writing {}", out.display()))?;
+    }
+    let summary = writer.finish()?;
+    let report = json!({
+        "from": reader.path(),
+        "to": summary.mcap_path,
+        "recovered_messages": summary.message_count,
+        "recovered_per_topic": summary.per_topic,
+        "messages_in_damaged_chunks": reader.lost_known(),
+        "dropped_partial_last_stamp": dropped,
+        "truncation": reader.truncation(),
+        "damage": damage_json(&reader),
+    });
+    println!("{}", serde_json::to_string_pretty(&report)?);
+    Ok(())
+}
+
+/// A crash cuts the run mid-step: when the last log time carries fewer topics than the
+/// one before it, its messages are half a step, and a finished bag must not end in one.
+/// Returns how many messages were dropped.
+fn drop_partial_last_stamp(messages: &mut Vec<causal_arm_bag::RawMessage>) -> usize {
+    let topics_at = |t: u64, all: &[causal_arm_bag::RawMessage]| {
+        let mut topics: Vec<&str> = all
+            .iter()
+            .rev()
+            .skip_while(|m| m.log_time_ns != t)
+            .take_while(|m| m.log_time_ns == t)
+            .map(|m| m.topic.as_str())
+            .collect();
+        topics.sort_unstable();
+        topics.dedup();
+        topics.len()
+    };
+    let Some(last) = messages.last().map(|m| m.log_time_ns) else {
+        return 0;
+    };
+    let Some(before) = messages
+        .iter()
+        .rev()
+        .map(|m| m.log_time_ns)
+        .find(|t| *t != last)
+    else {
+        return 0;
+    };
+    if topics_at(last, messages) >= topics_at(before, messages) {
+        return 0;
+    }
+    let keep = messages
+        .iter()
+        .rposition(|m| m.log_time_ns != last)
+        .map_or(0, |i| i + 1);
+    let dropped = messages.len() - keep;
+    messages.truncate(keep);
+    dropped
 }

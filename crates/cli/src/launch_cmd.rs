@@ -2,6 +2,7 @@
 //! processes (the same graph `ros2 launch` starts), follow the recorder's progress over
 //! DDS, stop everything cleanly and say where the bag is.
 
+use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -113,9 +114,20 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
 
     let mut children = Vec::new();
     for (name, args) in commands {
-        let child = Command::new(node_binary(&name)?)
-            .args(&args)
-            .stdin(Stdio::null())
+        let mut command = Command::new(node_binary(&name)?);
+        command.args(&args).stdin(Stdio::null());
+        // SAFETY: prctl is async-signal-safe and touches only the child being started.
+        // The node gets SIGTERM (and finalizes, as on Ctrl-C) if the launcher dies, even
+        // by SIGKILL, so no node outlives its launcher.
+        unsafe {
+            command.pre_exec(|| {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+        let child = command
             .spawn()
             .with_context(|| format!("starting {name}"))?;
         children.push((name, child));

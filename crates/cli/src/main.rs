@@ -25,6 +25,10 @@ use clap::{Parser, Subcommand};
     after_help = "ROS arguments go after --ros-args, e.g. `causal-arm topic echo /joint_states --type sensor_msgs/msg/JointState --ros-args -r __node:=my_echo`.\nEnvironment: ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_LOCALHOST_ONLY, RMW_IMPLEMENTATION, RUST_LOG."
 )]
 struct Cli {
+    /// Read damaged bags anyway: skip damaged chunks with a warning instead of refusing the
+    /// bag (a crash tail is always read up to its last complete chunk).
+    #[arg(long, global = true)]
+    salvage: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -35,7 +39,7 @@ enum Command {
     Fk(kinematics_cmd::FkArgs),
     /// Inverse kinematics (damped least squares): joints that put `ef` at a position.
     Ik(kinematics_cmd::IkArgs),
-    /// Inspect bags (topics, counts, integrity).
+    /// Inspect, check and recover bags (topics, counts, integrity).
     Bag(bag_cmd::BagArgs),
     /// Run an experiment in one process (no DDS) and write its dataset bag.
     Generate(generate_cmd::GenerateArgs),
@@ -76,6 +80,12 @@ fn main() -> std::process::ExitCode {
         Ok(cli) => cli,
         Err(err) => return usage_exit(&err),
     };
+    // Warnings of the commands themselves (a bag cut short, a dataset not cached) are
+    // printed, not only those of nodes.
+    causal_arm_node::logging::init_with_level(ros_args.log_level.as_deref());
+    if cli.salvage {
+        causal_arm_bag::ReadPolicy::Salvage.set_process_default();
+    }
     let result = match &cli.command {
         Command::Fk(args) => kinematics_cmd::run_fk(args),
         Command::Ik(args) => kinematics_cmd::run_ik(args),

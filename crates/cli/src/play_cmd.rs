@@ -64,8 +64,11 @@ pub fn run(args: &PlayArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
         bail!("--rate must be a non-negative number, got {}", args.rate);
     }
     let reader = BagReader::open(&args.bag)?;
-    if let Some(t) = reader.truncation() {
-        tracing::warn!("{}: playing an incomplete bag ({t})", args.bag.display());
+    if reader.message_count() == 0 {
+        bail!(
+            "{}: nothing to play (the bag holds no messages)",
+            reader.path().display()
+        );
     }
     let known: Vec<String> = reader.topics().iter().map(|t| t.name.clone()).collect();
     for t in &args.topics {
@@ -119,7 +122,14 @@ pub fn run(args: &PlayArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
                 clock: time_from_ns(raw.log_time_ns),
             });
         }
-        publish(&raw.data)?;
+        publish(&raw.data).with_context(|| {
+            format!(
+                "{}: message {played} ({} at {} ns)",
+                reader.path().display(),
+                raw.topic,
+                raw.log_time_ns
+            )
+        })?;
         played += 1;
     }
     std::thread::sleep(Duration::from_millis(300));

@@ -71,7 +71,9 @@ fn file_err(path: &Path, problem: impl std::fmt::Display) -> TrainError {
     }
 }
 
-/// Writes `dir/<name>.safetensors` and `dir/<name>.json`; returns both paths.
+/// Writes `dir/<name>.safetensors` and `dir/<name>.json`; returns both paths. Both are
+/// written beside their place and renamed in only once complete, so a failed write (a
+/// full disk) never destroys the model already there.
 pub fn save_model(
     dir: &Path,
     model: &Regressor,
@@ -80,10 +82,22 @@ pub fn save_model(
     std::fs::create_dir_all(dir).map_err(|e| file_err(dir, e))?;
     let weights = dir.join(format!("{}.safetensors", meta.name));
     let json = dir.join(format!("{}.json", meta.name));
-    model.save(&weights).map_err(|e| file_err(&weights, e))?;
-    let text = serde_json::to_string_pretty(meta).map_err(|e| file_err(&json, e))?;
-    std::fs::write(&json, text + "\n").map_err(|e| file_err(&json, e))?;
-    Ok((weights, json))
+    let weights_tmp = dir.join(format!(".{}.safetensors.partial", meta.name));
+    let json_tmp = dir.join(format!(".{}.json.partial", meta.name));
+    let written = (|| {
+        model
+            .save(&weights_tmp)
+            .map_err(|e| file_err(&weights, e))?;
+        let text = serde_json::to_string_pretty(meta).map_err(|e| file_err(&json, e))?;
+        std::fs::write(&json_tmp, text + "\n").map_err(|e| file_err(&json, e))?;
+        std::fs::rename(&weights_tmp, &weights).map_err(|e| file_err(&weights, e))?;
+        std::fs::rename(&json_tmp, &json).map_err(|e| file_err(&json, e))
+    })();
+    if written.is_err() {
+        let _ = std::fs::remove_file(&weights_tmp);
+        let _ = std::fs::remove_file(&json_tmp);
+    }
+    written.map(|()| (weights, json))
 }
 
 /// Reads a model written by [`save_model`], checking the two halves agree.

@@ -30,7 +30,8 @@ struct CallArgs {
     /// Service type, e.g. causal_arm_msgs/srv/PredictNextState.
     #[arg(long = "type")]
     service_type: String,
-    /// Request as JSON (fields of the request part of the .srv).
+    /// Request as JSON (fields of the request part of the .srv), or `@FILE` to read it
+    /// from a file (large requests do not fit on a command line).
     #[arg(long, default_value = "{}")]
     json: String,
     /// Seconds to wait for the server and for the reply.
@@ -51,7 +52,12 @@ where
     S::Request: ros2_client::Message,
     S::Response: ros2_client::Message,
 {
-    let request: S::Request = serde_json::from_str(&args.json)
+    let text = match args.json.strip_prefix('@') {
+        Some(file) => std::fs::read_to_string(file)
+            .with_context(|| format!("--json @{file}: cannot read the request file"))?,
+        None => args.json.clone(),
+    };
+    let request: S::Request = serde_json::from_str(&text)
         .with_context(|| format!("--json does not match the request of {}", S::ROS_TYPE))?;
     if !(args.timeout.is_finite() && args.timeout > 0.0) {
         bail!(

@@ -104,6 +104,8 @@ BAD_REQUESTS = [
     ("next", idl.PredictNextStateRequest(state=[0.0] * 9 + [math.nan], action=[0.0] * 7, rows=1), "state[9] (row 0, column 9) is NaN"),
     ("next", idl.PredictNextStateRequest(state=[0.0] * 10, action=[math.inf] + [0.0] * 6, rows=1), "action[0] (row 0, column 0) is inf"),
     ("next", idl.PredictNextStateRequest(state=[], action=[], rows=4_000_000_000), "exceeds the limit"),
+    ("next", idl.PredictNextStateRequest(state=[1e308] + [0.0] * 9, action=[0.0] * 7, rows=1), "beyond the float32 range"),
+    ("next", idl.PredictNextStateRequest(state=[3e38] * 10, action=[-3e38] * 7, rows=1), "output is NaN"),
     ("action", idl.PredictActionRequest(state=[0.0] * 10, next_state=[0.0] * 10, rows=1), "next_state has 10 values, expected rows × 3 = 3"),
     ("rollout", idl.RolloutRequest(initial_state=[0.0] * 10, actions=[0.0] * 7, steps=2), "actions has 7 values"),
     ("rollout", idl.RolloutRequest(initial_state=[0.0] * 10, actions=[], steps=0), "steps must be at least 1"),

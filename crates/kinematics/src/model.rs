@@ -110,6 +110,7 @@ impl ArmModel {
         let mut segments = Vec::new();
         let mut limits = Vec::new();
         for joint in joints {
+            check_finite_joint(joint).map_err(chain_err)?;
             let motion = match joint.joint_type {
                 urdf_rs::JointType::Fixed => Motion::Fixed,
                 urdf_rs::JointType::Revolute => {
@@ -214,6 +215,34 @@ impl ArmModel {
     }
 }
 
+/// A NaN or infinite origin, axis or limit would make every pose non-finite: refuse the
+/// URDF naming the joint and field instead.
+fn check_finite_joint(joint: &urdf_rs::Joint) -> Result<(), String> {
+    let fields = [
+        ("origin xyz", joint.origin.xyz.to_vec()),
+        ("origin rpy", joint.origin.rpy.to_vec()),
+        ("axis xyz", joint.axis.xyz.to_vec()),
+        (
+            "limit",
+            vec![
+                joint.limit.lower,
+                joint.limit.upper,
+                joint.limit.velocity,
+                joint.limit.effort,
+            ],
+        ),
+    ];
+    for (field, values) in fields {
+        if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+            return Err(format!(
+                "joint {} has a non-finite {field} ({v} in {values:?})",
+                joint.name
+            ));
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -265,6 +294,14 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.starts_with("bad.urdf: malformed URDF"), "{err}");
+        let nan = EMBEDDED_IIWA_URDF.replace("xyz=\"0 0.2045 0\"", "xyz=\"0 NaN 0\"");
+        let err = ArmModel::from_urdf_str(&nan, "nan.urdf")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("joint iiwa_joint_3 has a non-finite origin xyz (NaN"),
+            "{err}"
+        );
         let no_ef = EMBEDDED_IIWA_URDF.replace("\"ef\"", "\"tip\"");
         let err = ArmModel::from_urdf_str(&no_ef, "a.urdf")
             .unwrap_err()

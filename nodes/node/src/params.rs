@@ -220,6 +220,11 @@ impl RosArgs {
                     }
                     "-r" | "--remap" => {
                         let (from, to) = split_assignment(&value_of(item)?, item)?;
+                        if to.is_empty() {
+                            return Err(ParamError::Syntax(format!(
+                                "{item} {from}:= needs a name after :="
+                            )));
+                        }
                         match from.as_str() {
                             "__node" | "__name" => ros.node_name = Some(to),
                             "__ns" => ros.namespace = Some(to),
@@ -482,6 +487,16 @@ mod tests {
         assert_eq!(ros.node_name.as_deref(), Some("sim2"));
         assert_eq!(ros.remaps, vec![("/a".to_string(), "/b".to_string())]);
         assert_eq!(ros.log_level.as_deref(), Some("debug"));
+    }
+
+    #[test]
+    fn empty_remap_target_is_named() {
+        let err = RosArgs::split(&args(&["--ros-args", "-r", "__node:="])).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("-r __node:= needs a name after :="),
+            "{err}"
+        );
     }
 
     #[test]

@@ -37,15 +37,37 @@ pub fn check_batch(field: &str, values: &[f64], rows: usize, width: usize) -> Re
             rows * width
         ));
     }
-    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+    // The models compute in float32: a finite f64 beyond its range would become inf.
+    if let Some(i) = values.iter().position(|v| !(*v as f32).is_finite()) {
+        let beyond = if values[i].is_finite() {
+            ", beyond the float32 range (±3.4e38) the models compute in"
+        } else {
+            ""
+        };
         return Err(format!(
-            "{field}[{i}] (row {}, column {}) is {}",
+            "{field}[{i}] (row {}, column {}) is {}{beyond}",
             i / width,
             i % width,
             values[i]
         ));
     }
     Ok(())
+}
+
+/// Runs `model` and refuses a non-finite answer (inputs far outside the training data can
+/// overflow a head) instead of replying `success` with NaN or inf.
+fn predict_finite(model: &LoadedModel, inputs: &[f32]) -> Result<Vec<f64>, String> {
+    let out = model.predict(inputs).map_err(|e| e.to_string())?;
+    let width = model.meta.architecture.outputs().max(1);
+    if let Some(i) = out.iter().position(|v| !v.is_finite()) {
+        return Err(format!(
+            "the model's output is {} at row {}, column {}: the inputs are too far outside the data it was trained on",
+            out[i],
+            i / width,
+            i % width
+        ));
+    }
+    Ok(out.into_iter().map(f64::from).collect())
 }
 
 fn check_rows(rows: u32, limit: usize, what: &str) -> Result<usize, String> {
@@ -145,8 +167,7 @@ impl ModelSet {
             inputs.extend(to_f32(&state[r * sw..(r + 1) * sw]));
             inputs.extend(to_f32(&action[r * aw..(r + 1) * aw]));
         }
-        let out = self.forward().predict(&inputs).map_err(|e| e.to_string())?;
-        Ok(out.into_iter().map(f64::from).collect())
+        predict_finite(self.forward(), &inputs)
     }
 
     /// `/trainer/predict_next_state`: FM on a batch.
@@ -195,9 +216,8 @@ impl ModelSet {
                 inputs.extend(to_f32(&req.state[r * sw..(r + 1) * sw]));
                 inputs.extend(to_f32(&req.next_state[r * nw..(r + 1) * nw]));
             }
-            let out = inverse.predict(&inputs).map_err(|e| e.to_string())?;
             Ok((
-                out.into_iter().map(f64::from).collect(),
+                predict_finite(inverse, &inputs)?,
                 rows,
                 inverse.meta.problem.output_names.clone(),
             ))

@@ -284,6 +284,61 @@ def test_explain_service_attributions_are_efficient_against_numpy(exp2, client):
         assert np.all(np.abs(phi[:, 6:9, 23:]) < 1e-9)
 
 
+def deep_rows(exp2, client, n, timeout):
+    """Deep SHAP of n rows from CycloneDDS, checked for efficiency against NumPy; returns
+    the attributions and the request."""
+    d, _ = exp2
+    t = load_safetensors(d / "deep" / "shap_values.safetensors")
+    rows = np.resize(t["observations"], (n, 31))
+    state, action = rows[:, :23].ravel().tolist(), rows[:, 23:].ravel().tolist()
+    reply = client.call(idl.ExplainRequest(method="deep", state=state, action=action, rows=n), timeout=timeout)
+    assert reply.success, reply.message
+    phi = np.array(reply.attributions).reshape(n, 23, 31)
+    f = numpy_predict(d / "models", "fm", rows[:50])
+    sums = phi[:50].sum(axis=2)
+    gap = (sums - sums[0]) - (f - f[0])
+    assert np.all(np.abs(gap) <= 1e-5 * (np.abs(f).max(axis=0) + 1e-9))
+    return phi, {"method": "deep", "state": state, "action": action, "rows": n, "background": 0}
+
+
+def test_multi_fragment_explanations_reach_cyclonedds_and_our_own_client(exp2, client, run_cli, tmp_path):
+    """100 rows of Deep SHAP: a 570 KB reply over many DDS fragments reaches CycloneDDS and
+    `causal-arm service call` alike (rustdds patched: DATA_FRAG with inline QoS)."""
+    phi, request = deep_rows(exp2, client, 100, 60)
+    path = tmp_path / "request.json"
+    path.write_text(json.dumps(request))
+    env = {"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp", "ROS_DOMAIN_ID": str(DOMAIN)}
+    r = run_cli("service", "call", "/explainer/explain", "--type", "causal_arm_msgs/srv/Explain",
+                "--json", f"@{path}", "--timeout", "60", env=env, timeout=120)
+    assert r.returncode == 0, r.stderr[-800:]
+    ours = np.array(json.loads(r.stdout)["attributions"]).reshape(100, 23, 31)
+    np.testing.assert_allclose(ours, phi, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.xfail(strict=True, reason="a fresh explainer node's first reply is lost when it is 2.3 MB "
+                   "(400 rows) or more, while a first reply of 570 KB arrives and, after it, 5.7 MB "
+                   "(1,000 rows) does too. Not yet understood (rustdds reliable writer, first large sample)")
+def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply(exp2, causal_arm_bin, private_netns):
+    from cyclonedds.domain import DomainParticipant
+
+    d, _ = exp2
+    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp", ROS_DOMAIN_ID=str(DOMAIN + 1))
+    params = ["-p", f"model_dir:={d / 'models'}", "-p", f"bag:={d / 'bag'}", "-p", f"cache:={d / 'cache'}",
+              "-p", f"samples:={NODE_SAMPLES}"]
+    with node_process(causal_arm_bin.parent / "causal_arm_explainer", params, env):
+        fresh = idl.ServiceClient(DomainParticipant(DOMAIN + 1), "/explainer/explain", idl.ExplainRequest,
+                                  idl.ExplainReply)
+        assert fresh.wait_for_server(timeout=120)
+        deep_rows(exp2, fresh, 1000, 30)
+
+
+def test_the_advertised_deep_limit_reaches_a_client_after_a_smaller_reply(exp2, participant, explainer_node):
+    warmed = idl.ServiceClient(participant, "/explainer/explain", idl.ExplainRequest, idl.ExplainReply)
+    assert warmed.wait_for_server(timeout=60)
+    deep_rows(exp2, warmed, 100, 60)
+    deep_rows(exp2, warmed, 1000, 60)
+
+
 @pytest.mark.parametrize("change,message", [
     ({"method": "lime"}, "unknown SHAP method"),
     ({"rows": 0}, "rows must be at least 1"),

@@ -134,13 +134,6 @@ impl ExplainService {
             x.extend(req.state[r * sw..(r + 1) * sw].iter().map(|&v| v as f32));
             x.extend(req.action[r * aw..(r + 1) * aw].iter().map(|&v| v as f32));
         }
-        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-            return Err(format!(
-                "row {} column {} does not fit in a 32-bit float",
-                i / (sw + aw),
-                i % (sw + aw)
-            ));
-        }
         let bg = self.background(method, background)?;
         let (a, _) = self
             .explainer

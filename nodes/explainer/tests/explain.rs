@@ -211,7 +211,10 @@ fn explanations_are_efficient_find_colour_unaffected_and_are_served() {
         "state[4] (row 0, column 4) is NaN",
     );
     bad(&|r| r.action[0] = f64::INFINITY, "action[0]");
-    bad(&|r| r.state[0] = 1e300, "does not fit in a 32-bit float");
+    bad(
+        &|r| r.state[0] = 1e300,
+        "state[0] (row 0, column 0) is 1e300, beyond the float32 range",
+    );
     bad(&|r| r.rows = 4_000_000_000, "exceeds the deep SHAP limit");
     bad(&|r| r.background = 5000, "exceeds the 200 rows available");
     bad(

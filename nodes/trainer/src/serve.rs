@@ -45,7 +45,7 @@ pub fn check_batch(field: &str, values: &[f64], rows: usize, width: usize) -> Re
             ""
         };
         return Err(format!(
-            "{field}[{i}] (row {}, column {}) is {}{beyond}",
+            "{field}[{i}] (row {}, column {}) is {:?}{beyond}",
             i / width,
             i % width,
             values[i]

@@ -359,7 +359,8 @@ mod tests {
     };
     let bytes = serialize_body(&df);
     assert_eq!(bytes.len(), df.len_serialized());
-    let back = DataFrag::deserialize(&bytes, BitFlags::from_flag(DATAFRAG_Flags::InlineQos))
+    let flags = DATAFRAG_Flags::Endianness | DATAFRAG_Flags::InlineQos; // little-endian
+    let back = DataFrag::deserialize(&bytes, flags)
       .expect("a DataFrag with inline QoS reads back");
     assert_eq!(back, df);
   }

@@ -235,6 +235,34 @@ def test_sigint_mid_run_leaves_a_finalized_bag(causal_arm_bin, tmp_path, private
         assert 0.0 < np.hypot(p.x, p.y) < 1.4 and -0.5 < p.z < 1.4
 
 
+def test_sigkill_of_the_launcher_stops_every_node_and_finalizes_the_bag(causal_arm_bin, tmp_path, private_netns):
+    """The nodes get SIGTERM when their launcher dies, even by SIGKILL (PR_SET_PDEATHSIG):
+    none outlives it, and the recorder finalizes the bag with whole steps."""
+    env = {**os.environ, "ROS_DOMAIN_ID": "19", "RUST_LOG": "warn"}
+    out = tmp_path / "orphaned"
+    proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", "100000", "--seed", "1",
+                             "--out", str(out)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not any(out.glob("*.mcap")):
+        time.sleep(0.2)
+    time.sleep(2)
+    children = [int(c) for c in pathlib.Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
+    assert len(children) == 3, children
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(pathlib.Path(f"/proc/{c}").exists() for c in children):
+        time.sleep(0.1)
+    alive = [c for c in children if pathlib.Path(f"/proc/{c}").exists()
+             and "Z" not in pathlib.Path(f"/proc/{c}/stat").read_text().split()[2]]
+    assert not alive, f"nodes outlived their launcher: {alive}"
+    topics = read_bag(out)
+    n = len(topics["/joint_states"])
+    assert 0 < n < 100000
+    for topic in STEP_TOPICS:
+        assert len(topics[topic]) == n, topic
+
+
 def test_player_republishes_a_bag(run_cli, causal_arm_bin, tmp_path, private_netns):
     bag = tmp_path / "small"
     assert run_cli("generate", "exp1", "--steps", "40", "--seed", "2", "--out", bag).returncode == 0

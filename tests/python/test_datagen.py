@@ -263,6 +263,37 @@ def test_sigkill_of_the_launcher_stops_every_node_and_finalizes_the_bag(causal_a
         assert len(topics[topic]) == n, topic
 
 
+@pytest.mark.parametrize("victim", ["causal_arm_sim", "causal_arm_babbler", "causal_arm_recorder"])
+def test_a_killed_node_ends_the_run_naming_it(causal_arm_bin, tmp_path, private_netns, victim):
+    """SIGKILL of any node: the launcher notices within 2 s, stops the others, says which
+    node died and how, exits non-zero, and leaves no node running."""
+    env = {**os.environ, "ROS_DOMAIN_ID": "20", "RUST_LOG": "warn"}
+    out = tmp_path / "faulted"
+    proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", "100000", "--seed", "1",
+                             "--out", str(out)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not any(out.glob("*.mcap")):
+        time.sleep(0.2)
+    time.sleep(2)
+    children = [int(c) for c in pathlib.Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
+    names = {c: pathlib.Path(f"/proc/{c}/comm").read_text().strip() for c in children}
+    target = next(c for c, n in names.items() if victim.startswith(n))
+    os.kill(target, signal.SIGKILL)
+    killed_at = time.monotonic()
+    try:
+        _, stderr = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    exited = time.monotonic()
+    assert proc.returncode != 0
+    assert victim in stderr and "signal: 9" in stderr, stderr[-1500:]
+    alive = [c for c in children if pathlib.Path(f"/proc/{c}").exists()
+             and "Z" not in pathlib.Path(f"/proc/{c}/stat").read_text().split()[2]]
+    assert not alive, f"nodes left running: {[names[c] for c in alive]}"
+    # Noticed within 2 s; this bounds noticing, stopping the others and finalizing the bag.
+    assert exited - killed_at < 5, exited - killed_at
+
+
 def test_player_republishes_a_bag(run_cli, causal_arm_bin, tmp_path, private_netns):
     bag = tmp_path / "small"
     assert run_cli("generate", "exp1", "--steps", "40", "--seed", "2", "--out", bag).returncode == 0

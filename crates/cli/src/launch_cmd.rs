@@ -139,7 +139,8 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
         .ok_or_else(|| anyhow::anyhow!("the graph has no node that ends the run"))?;
     let (recorder_name, mut recorder) = children.remove(ends_run);
     let start = Instant::now();
-    let recorder_status = follow_run(&options, ros_args, &stop, &mut recorder, &mut children)?;
+    let outcome = follow_run(&options, ros_args, &stop, &mut recorder, &mut children);
+    // Whatever ended the run, no node outlives it.
     for (_, child) in &mut children {
         if child.try_wait()?.is_none() {
             interrupt(child);
@@ -149,6 +150,7 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
             child.wait()?;
         }
     }
+    let recorder_status = outcome?;
     if !recorder_status.success() {
         bail!("{recorder_name} failed ({recorder_status})");
     }

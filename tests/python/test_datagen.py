@@ -335,10 +335,12 @@ def test_sigkill_leaves_a_readable_prefix(causal_arm_bin, run_cli, tmp_path):
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     assert info["complete"] is False and info["truncation"], "killed before finishing"
-    # metadata.yaml exists from the start and never counts more than the file holds.
+    assert "incomplete" in r.stderr
+    # metadata.yaml exists from the start, is kept current as chunks land (as rosbag2
+    # does), and never counts more than the file holds.
     import yaml
     meta = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-    assert 0 < meta["message_count"] <= info["message_count"]
+    assert 20000 < meta["message_count"] <= info["message_count"], "the index was not kept current"
     counts = {t["name"]: t["message_count"] for t in info["topics"]}
     assert counts["/joint_states"] > 1000
     # Whole steps survive: every state topic of a step is in the same chunk as its action
@@ -356,3 +358,14 @@ def test_sigkill_leaves_a_readable_prefix(causal_arm_bin, run_cli, tmp_path):
         except Exception:  # the chunk being written when the process died
             pass
     assert seen == info["message_count"]
+    # `bag recover` finishes it: the half step the kill cut is dropped, nothing else, and
+    # rosbags (which refuses any MCAP file without its closing magic) reads the result.
+    r = run_cli("bag", "recover", out, "--out", tmp_path / "finished")
+    assert r.returncode == 0, r.stderr
+    report = json.loads(r.stdout)
+    assert 0 <= report["dropped_partial_last_stamp"] < 8
+    assert report["recovered_messages"] + report["dropped_partial_last_stamp"] == info["message_count"]
+    with AnyReader([tmp_path / "finished"]) as reader:
+        assert sum(1 for _ in reader.messages()) == report["recovered_messages"]
+    r = run_cli("bag", "check", tmp_path / "finished")
+    assert r.returncode == 0, r.stdout[-800:] + r.stderr[-800:]

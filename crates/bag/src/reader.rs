@@ -141,47 +141,53 @@ impl BagReader {
     /// [`BagReader::open`] with an explicit policy.
     pub fn open_with(path: &Path, policy: ReadPolicy) -> Result<Self, BagError> {
         let reader = Self::open_unchecked(path)?;
+        reader.judge(path, policy)?;
+        Ok(reader)
+    }
+
+    /// Judges a file opened by [`BagReader::open_unchecked`] from `path` as
+    /// [`BagReader::open_with`] does: `metadata.yaml` (for a bag directory) and the file's
+    /// damage are errors under [`ReadPolicy::Strict`] and warnings when salvaging; a crash
+    /// tail is a warning; a file with no readable message is an error.
+    pub fn judge(&self, path: &Path, policy: ReadPolicy) -> Result<(), BagError> {
         if path.is_dir()
-            && let Err(e) = crate::metadata::check(path, &reader)
+            && let Err(e) = crate::metadata::check(path, self)
         {
             if policy == ReadPolicy::Strict {
                 return Err(e);
             }
             tracing::warn!("salvaging past: {e}");
         }
-        let damage = &reader.scan.damage;
+        let damage = &self.scan.damage;
         if let Some(first) = damage.first() {
             if policy == ReadPolicy::Strict {
                 return Err(BagError::Damaged {
-                    path: reader.mcap_path.clone(),
+                    path: self.mcap_path.clone(),
                     damage: first.clone(),
                     more: damage.len() - 1,
                 });
             }
             for d in damage {
-                tracing::warn!(
-                    "{}: salvaging past damage at {d}",
-                    reader.mcap_path.display()
-                );
+                tracing::warn!("{}: salvaging past damage at {d}", self.mcap_path.display());
             }
         }
-        if let Some(t) = reader.truncation() {
+        if let Some(t) = self.truncation() {
             tracing::warn!(
                 "{}: incomplete bag ({t}); reading its {} complete messages",
-                reader.mcap_path.display(),
-                reader.message_count()
+                self.mcap_path.display(),
+                self.message_count()
             );
         }
-        if reader.message_count() == 0 && !reader.scan.finished {
+        if self.message_count() == 0 && !self.scan.finished {
             return Err(BagError::Metadata {
-                path: reader.mcap_path.clone(),
+                path: self.mcap_path.clone(),
                 problem: format!(
                     "no readable messages ({})",
-                    reader.truncation().unwrap_or("the file is damaged")
+                    self.truncation().unwrap_or("the file is damaged")
                 ),
             });
         }
-        Ok(reader)
+        Ok(())
     }
 
     /// Maps and scans the file without judging it: what `bag check` and `bag recover`

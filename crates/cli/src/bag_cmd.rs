@@ -99,7 +99,7 @@ fn damage_json(reader: &BagReader) -> Vec<serde_json::Value> {
 fn check(bag: &Path) -> anyhow::Result<()> {
     let reader = BagReader::open_unchecked(bag)?;
     // metadata.yaml and the file's own damage, as a strict reader judges them.
-    let verdict = BagReader::open_with(bag, ReadPolicy::Strict).err();
+    let verdict = reader.judge(bag, ReadPolicy::Strict).err();
     let steps = if verdict.is_none() {
         match causal_arm_dataset::from_bag(bag, None, causal_arm_dataset::ActionSource::Realized) {
             Ok(data) => json!({"transitions": data.rows()}),

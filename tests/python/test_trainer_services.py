@@ -279,8 +279,8 @@ def test_large_replies_reach_our_own_client(run_cli, trainer_node, model_dir, tm
     np.testing.assert_allclose(got[-50:], expected, rtol=1e-4, atol=1e-5)
 
 
-@pytest.mark.xfail(strict=True, reason="rustdds to rustdds: a sample over the 8 MiB socket buffer "
-                   "(100,000 rows = 13.6 MB request) is sent as one burst and its repair stalls; "
-                   "CycloneDDS peers are served (test above)")
+@pytest.mark.xfail(strict=False, reason="rustdds to rustdds: a sample over the 8 MiB socket buffer "
+                   "(100,000 rows = 13.6 MB request) is sent as one burst and its repair often stalls "
+                   "past 20 s, sometimes not (so not strict); CycloneDDS peers are served (test above)")
 def test_the_advertised_row_limit_reaches_our_own_client(run_cli, trainer_node, tmp_path):
     cli_call_rows(run_cli, tmp_path, 100_000, 20)

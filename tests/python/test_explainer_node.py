@@ -315,7 +315,8 @@ def test_multi_fragment_explanations_reach_cyclonedds_and_our_own_client(exp2, c
     np.testing.assert_allclose(ours, phi, rtol=1e-9, atol=1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason="a fresh explainer node's first reply is lost when it is 2.3 MB "
+@pytest.mark.xfail(strict=False, reason="(lost in each of 4 runs so far; not strict, as the DDS repair that "
+                   "loses it is timing-dependent) a fresh explainer node's first reply is lost when it is 2.3 MB "
                    "(400 rows) or more, while a first reply of 570 KB arrives and, after it, 5.7 MB "
                    "(1,000 rows) does too. Not yet understood (rustdds reliable writer, first large sample)")
 def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply(exp2, causal_arm_bin, private_netns):

@@ -352,9 +352,23 @@ fn print_results(data: &Dataset, options: &TrainOptions, saved: &SavedRun) {
     for run in &saved.runs {
         let selection = match run.selection {
             Some(s) => format!(
-                ", validation MAE {:.4e}{}",
+                ", validation MAE {:.4e}{}{}",
                 s.validation_mae,
-                if s.chosen { " (kept)" } else { "" }
+                if s.chosen { " (kept)" } else { "" },
+                match s.against_full_fm {
+                    Some(c) => format!(
+                        "; full FM {:.4e}, difference {:+.3e} ± {:.3e} (2 SE){}",
+                        c.full_fm_validation_mae,
+                        c.difference,
+                        2.0 * c.standard_error,
+                        if c.candidate_better {
+                            ""
+                        } else {
+                            ": the full FM's head is kept"
+                        }
+                    ),
+                    None => String::new(),
+                }
             ),
             None => String::new(),
         };

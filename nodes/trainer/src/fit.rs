@@ -275,23 +275,39 @@ pub fn predict(
 
 /// Mean absolute error of each head (angular heads wrapped into (−π, π]).
 pub fn head_mae(prediction: &[f32], truth: &[f32], heads: &[HeadInfo]) -> Vec<f64> {
-    let width: usize = heads.iter().map(|h| h.len).sum();
-    let rows = truth.len() / width;
     heads
         .iter()
         .map(|h| {
-            let mut sum = 0.0;
-            for r in 0..rows {
-                for c in h.start..h.start + h.len {
+            let errors = head_row_errors(prediction, truth, heads, h);
+            errors.iter().sum::<f64>() / errors.len().max(1) as f64
+        })
+        .collect()
+}
+
+/// Each row's mean absolute error over the columns of `head`, one of `heads` (angles
+/// wrapped): the terms of [`head_mae`], kept apart where two models are compared row by
+/// row.
+pub fn head_row_errors(
+    prediction: &[f32],
+    truth: &[f32],
+    heads: &[HeadInfo],
+    head: &HeadInfo,
+) -> Vec<f64> {
+    let width: usize = heads.iter().map(|h| h.len).sum();
+    let rows = truth.len() / width.max(1);
+    (0..rows)
+        .map(|r| {
+            let row_sum: f64 = (head.start..head.start + head.len)
+                .map(|c| {
                     let d = prediction[r * width + c] as f64 - truth[r * width + c] as f64;
-                    sum += if h.angular {
+                    if head.angular {
                         wrap_angle(d).abs()
                     } else {
                         d.abs()
-                    };
-                }
-            }
-            sum / (rows * h.len).max(1) as f64
+                    }
+                })
+                .sum();
+            row_sum / head.len.max(1) as f64
         })
         .collect()
 }

@@ -24,5 +24,6 @@ pub use error::TrainError;
 pub use model_file::{LoadedModel, ModelMeta, load_model, save_model};
 pub use options::{ModelKind, ModelRequest, TrainOptions};
 pub use report::{
-    CurvePoint, Figure, FoldFigure, KindReport, ProblemInfo, RunRecord, Selection, paper_figure,
+    CurvePoint, Figure, FoldFigure, FullFmComparison, KindReport, ProblemInfo, RunRecord,
+    Selection, paper_figure,
 };

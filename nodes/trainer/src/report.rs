@@ -107,6 +107,58 @@ pub struct Selection {
     pub validation_mae: f64,
     /// The candidate kept for the head.
     pub chosen: bool,
+    /// For the best candidate of a head: how it fared against the full FM's head on the
+    /// same rows (it is kept only if significantly better).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub against_full_fm: Option<FullFmComparison>,
+}
+
+/// A factored head's best candidate against the full FM's head, row by row on the
+/// validation rows. The full FM is the model the factored one must not be worse than, so
+/// a head keeps the full FM's own network unless its candidate wins by more than chance.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FullFmComparison {
+    /// The full FM's MAE on the head over the validation rows.
+    pub full_fm_validation_mae: f64,
+    /// Candidate minus full FM MAE (negative: the candidate is better).
+    pub difference: f64,
+    /// Standard error of the difference by batch means over contiguous blocks of rows (the
+    /// rows of one episode are not independent).
+    pub standard_error: f64,
+    /// The difference is below −2 standard errors: the candidate is kept.
+    pub candidate_better: bool,
+}
+
+impl FullFmComparison {
+    /// Blocks the validation rows are cut into for the batch-means standard error.
+    pub const BLOCKS: usize = 30;
+
+    /// Compares the row errors of a candidate with the full FM's on the same rows.
+    pub fn from_row_errors(candidate: &[f64], full_fm: &[f64]) -> Self {
+        let n = candidate.len().min(full_fm.len());
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        let differences: Vec<f64> = (0..n).map(|i| candidate[i] - full_fm[i]).collect();
+        let difference = mean(&differences);
+        let block = n.div_ceil(Self::BLOCKS).max(1);
+        let block_means: Vec<f64> = differences.chunks(block).map(mean).collect();
+        let k = block_means.len();
+        let standard_error = if k < 2 {
+            f64::INFINITY
+        } else {
+            let var = block_means
+                .iter()
+                .map(|m| (m - difference).powi(2))
+                .sum::<f64>()
+                / (k - 1) as f64;
+            (var / k as f64).sqrt()
+        };
+        Self {
+            full_fm_validation_mae: mean(&full_fm[..n]),
+            difference,
+            standard_error,
+            candidate_better: difference < -2.0 * standard_error,
+        }
+    }
 }
 
 /// One point of a learning curve.
@@ -201,5 +253,35 @@ impl FigureTable {
                 }
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::FullFmComparison;
+
+    #[test]
+    fn a_candidate_is_better_only_by_more_than_two_batch_standard_errors() {
+        // Full FM errors alternate 1, 3 per block; the candidate is 0.5 lower everywhere:
+        // a constant shift has no spread, so it is significant.
+        let full: Vec<f64> = (0..300)
+            .map(|i| if (i / 10) % 2 == 0 { 1.0 } else { 3.0 })
+            .collect();
+        let shifted: Vec<f64> = full.iter().map(|e| e - 0.5).collect();
+        let c = FullFmComparison::from_row_errors(&shifted, &full);
+        assert!((c.difference + 0.5).abs() < 1e-12 && c.standard_error < 1e-12);
+        assert!(c.candidate_better);
+        assert_eq!(c.full_fm_validation_mae, 2.0);
+        // Better on half the blocks by 1, worse on the other half by 0.9: lower on the mean
+        // (−0.05) but well inside the blocks' spread.
+        let noisy: Vec<f64> = (0..300)
+            .map(|i| full[i] + if (i / 10) % 2 == 0 { -1.0 } else { 0.9 })
+            .collect();
+        let c = FullFmComparison::from_row_errors(&noisy, &full);
+        assert!(c.difference < 0.0 && c.standard_error > 0.1, "{c:?}");
+        assert!(!c.candidate_better);
+        // Equal errors (the same network) are never "better"; one block gives no spread.
+        assert!(!FullFmComparison::from_row_errors(&full, &full).candidate_better);
+        assert!(!FullFmComparison::from_row_errors(&[0.0], &[1.0]).candidate_better);
     }
 }

@@ -177,7 +177,7 @@ fn exp1_truth_graph() -> FoundGraph {
 }
 
 #[test]
-fn factored_auto_compares_each_heads_candidates_on_training_rows_and_keeps_one() {
+fn factored_auto_compares_each_heads_candidates_on_training_rows_and_with_the_full_fm() {
     let data = dataset(Experiment::Exp1, 1, 1500);
     let options = TrainOptions {
         graph: Some(exp1_truth_graph()),
@@ -197,12 +197,14 @@ fn factored_auto_compares_each_heads_candidates_on_training_rows_and_keeps_one()
             f.baseline
         );
     }
-    // θ: alone, or with ef (driven by a0..a5 only); ef: alone, or with θ0..θ5 (upstream
-    // and determined give the same outputs, so one network).
+    // The full FM on the fit rows first; then θ: alone, or with ef (driven by a0..a5
+    // only); ef: alone, or with θ0..θ5 (upstream and determined give the same outputs, so
+    // one network); and the full FM on all training rows if a head keeps its head.
     let labels: Vec<&str> = report.runs.iter().map(|r| r.label.as_str()).collect();
     assert_eq!(
-        labels,
+        labels[..5],
         [
+            "fm-factored full-fm [validation] fold 1/3",
             "fm-factored theta [none] fold 1/3",
             "fm-factored theta [determined] fold 1/3",
             "fm-factored ef [none] fold 1/3",
@@ -210,22 +212,79 @@ fn factored_auto_compares_each_heads_candidates_on_training_rows_and_keeps_one()
         ]
     );
     let training_rows = data.rows() - data.rows() / 3;
-    for head in report.runs.chunks(2) {
-        let chosen: Vec<bool> = head.iter().map(|r| r.selection.unwrap().chosen).collect();
-        assert_eq!(chosen.iter().filter(|&&c| c).count(), 1, "{head:?}");
+    let mut heads_keeping_the_full_fm = 0;
+    for head in report.runs[1..5].chunks(2) {
+        let mae = |r: &RunRecord| r.selection.unwrap().validation_mae;
         let best = head
             .iter()
-            .min_by(|a, b| {
-                let mae = |r: &&RunRecord| r.selection.unwrap().validation_mae;
-                mae(a).total_cmp(&mae(b))
-            })
+            .min_by(|a, b| mae(a).total_cmp(&mae(b)))
             .unwrap();
-        assert!(best.selection.unwrap().chosen);
+        let comparison = best.selection.unwrap().against_full_fm.unwrap();
+        assert!(comparison.full_fm_validation_mae > 0.0);
         assert!(
-            head.iter()
-                .all(|r| r.rows < training_rows && r.rows > training_rows * 9 / 10)
+            (comparison.difference - (mae(best) - comparison.full_fm_validation_mae)).abs() < 1e-9
         );
+        assert_eq!(best.selection.unwrap().chosen, comparison.candidate_better);
+        heads_keeping_the_full_fm += usize::from(!comparison.candidate_better);
+        for run in head {
+            assert!(run.rows < training_rows && run.rows > training_rows * 9 / 10);
+            if !std::ptr::eq(run, best) {
+                assert!(!run.selection.unwrap().chosen);
+                assert!(run.selection.unwrap().against_full_fm.is_none());
+            }
+        }
     }
     let saved: Vec<&str> = report.models.iter().map(|m| m.0.as_str()).collect();
-    assert_eq!(saved, ["fm-factored-theta", "fm-factored-ef"]);
+    if heads_keeping_the_full_fm == 0 {
+        assert_eq!(labels.len(), 5);
+        assert_eq!(saved, ["fm-factored-theta", "fm-factored-ef"]);
+    } else {
+        assert_eq!(labels[5], "fm-factored full-fm fold 1/3");
+        assert_eq!(report.runs[5].rows, training_rows);
+        assert_eq!(saved.last(), Some(&"fm-factored-full-fm"));
+        assert_eq!(saved.len(), 3 - heads_keeping_the_full_fm);
+    }
+}
+
+/// A head whose graph withholds actions that drive it cannot beat the full FM: it keeps
+/// the full FM's own head, the very network and figure of `--model fm`.
+#[test]
+fn a_factored_head_no_better_than_the_full_fm_keeps_the_full_fms_head_bit_for_bit() {
+    let data = dataset(Experiment::Exp1, 1, 1500);
+    let mut graph = exp1_truth_graph();
+    for (a, row) in graph.drives.iter_mut().enumerate() {
+        for (state, drives) in graph.state_names.iter().zip(row.iter_mut()) {
+            if state.starts_with("ef_") {
+                *drives = a == 0;
+            }
+        }
+    }
+    let options = TrainOptions {
+        graph: Some(graph),
+        fm_hidden: vec![64, 64],
+        factored_hidden: vec![64, 64],
+        max_folds: Some(1),
+        ..quick(10)
+    };
+    let factored = cross_validate(&data, ModelKind::FmFactored, &options, &mut |_| {}).unwrap();
+    let ef_runs: Vec<&RunRecord> = factored
+        .runs
+        .iter()
+        .filter(|r| r.label.starts_with("fm-factored ef "))
+        .collect();
+    let comparison = ef_runs
+        .iter()
+        .find_map(|r| r.selection.unwrap().against_full_fm)
+        .unwrap();
+    assert!(!comparison.candidate_better, "{comparison:?}");
+    assert!(comparison.difference > 0.0, "{comparison:?}");
+    assert!(ef_runs.iter().all(|r| !r.selection.unwrap().chosen));
+    // Nothing is unaffected under this graph, so `--model fm` with it is the full FM.
+    let full = cross_validate(&data, ModelKind::Fm, &options, &mut |_| {}).unwrap();
+    let figure = |r: &causal_arm_trainer::KindReport, key: &str| {
+        r.figures.iter().find(|f| f.key == key).unwrap().mean
+    };
+    assert_eq!(figure(&factored, "fm/ef"), figure(&full, "fm/ef"));
+    let saved: Vec<&str> = factored.models.iter().map(|m| m.0.as_str()).collect();
+    assert!(saved.contains(&"fm-factored-full-fm"), "{saved:?}");
 }

@@ -16,10 +16,9 @@ use crate::fit::{
 };
 use crate::problems::{self, Problem};
 use crate::report::FigureTable;
-use crate::structure::{self, FoundGraph, HeadNet};
-use crate::{
-    CurvePoint, KindReport, ModelKind, ProblemInfo, RunRecord, Selection, TrainError, TrainOptions,
-};
+
+mod factored;
+use crate::{CurvePoint, KindReport, ModelKind, ProblemInfo, RunRecord, TrainError, TrainOptions};
 
 /// Cross-validates one model kind on `data`.
 pub fn cross_validate(
@@ -224,77 +223,6 @@ impl CrossValidation<'_> {
         self.whole(fold, problem, "im_mono", &self.options.im_hidden.clone())
     }
 
-    /// One network per FM head, fed only the head's parents in `graph`.
-    fn factored_forward_model(
-        &mut self,
-        fold: &Fold,
-        graph: &FoundGraph,
-    ) -> Result<(), TrainError> {
-        let full = problems::forward_model(self.data, self.options.fm_target);
-        let full = self.options.reduced(full)?;
-        let settings =
-            self.options
-                .settings("fm", self.data.experiment, &self.options.factored_hidden);
-        for head in &full.heads {
-            let candidates =
-                structure::head_candidates(&full, head, graph, self.options.factored_auxiliary)?;
-            let (net, model) = self.choose_head_network(fold, candidates, &head.name, &settings)?;
-            let primary = net.primary;
-            self.evaluate(fold, &net.problem, primary..primary + 1, &model, "fm")?;
-            let stem = format!("fm-factored-{}", head.name);
-            self.keep(fold, stem, model, &net.problem, settings.clone());
-        }
-        Ok(())
-    }
-
-    /// Fits a factored head's candidate networks and keeps the one with the lowest error
-    /// on the head. With several candidates they are fitted on the first 95 % of the
-    /// training rows and compared on the rest ([`selection_split`]), so the test fold
-    /// plays no part in the choice; each run records its validation error.
-    fn choose_head_network(
-        &mut self,
-        fold: &Fold,
-        candidates: Vec<HeadNet>,
-        head: &str,
-        settings: &FitSettings,
-    ) -> Result<(HeadNet, Regressor), TrainError> {
-        let (fit_rows, select_rows) = match candidates.len() {
-            1 => (&fold.train[..], &[][..]),
-            _ => selection_split(&fold.train),
-        };
-        // (run record, validation MAE) of each candidate compared.
-        let mut tried: Vec<(usize, f64)> = Vec::new();
-        let mut best: Option<(f64, usize, HeadNet, Regressor)> = None;
-        for net in candidates {
-            let label = format!("fm-factored {head} [{}] {}", net.auxiliary.name(), fold.tag);
-            let model = self.fit(&net.problem, fit_rows, fold.test, settings, label.clone())?;
-            let score = match select_rows {
-                [] => 0.0,
-                rows => held_out_mae(&net.problem, &model, rows)?[net.primary],
-            };
-            let run = self.runs.len() - 1;
-            if !select_rows.is_empty() {
-                tracing::info!("{label}: validation MAE {score:.4e}");
-                tried.push((run, score));
-            }
-            if best.as_ref().is_none_or(|(b, ..)| score < *b) {
-                best = Some((score, run, net, model));
-            }
-        }
-        let Some((_, best_run, net, model)) = best else {
-            return Err(TrainError::Options(format!(
-                "head {head} has no candidate network"
-            )));
-        };
-        for (run, validation_mae) in tried {
-            self.runs[run].selection = Some(Selection {
-                validation_mae,
-                chosen: run == best_run,
-            });
-        }
-        Ok((net, model))
-    }
-
     /// Fits the base IM [s(t), θ(t+1)] → a(t) of the pre-computation study.
     fn base_im(&mut self, fold: &Fold) -> Result<BaseIm, TrainError> {
         let exp = self.data.experiment;
@@ -393,26 +321,29 @@ impl CrossValidation<'_> {
     }
 }
 
-/// Splits training rows into rows to fit on and the last twentieth, contiguous in time, on
-/// which the candidates of a factored head are compared (so the test fold stays unseen).
-fn selection_split(train: &[usize]) -> (&[usize], &[usize]) {
-    let select = (train.len() / 20).max(1).min(train.len().saturating_sub(1));
-    train.split_at(train.len() - select)
-}
-
 /// MAE of each head of `model` on rows `test` of `problem`.
 fn held_out_mae(
     problem: &Problem,
     model: &Regressor,
     test: &[usize],
 ) -> Result<Vec<f64>, TrainError> {
-    let inputs = take_rows(&problem.inputs, problem.input_names.len(), test);
+    let (prediction, truth) = held_out_prediction(problem, model, test)?;
+    Ok(head_mae(&prediction, &truth, &problem.heads))
+}
+
+/// `model`'s prediction of rows `rows` of `problem`, and their truth.
+fn held_out_prediction(
+    problem: &Problem,
+    model: &Regressor,
+    rows: &[usize],
+) -> Result<(Vec<f32>, Vec<f32>), TrainError> {
+    let inputs = take_rows(&problem.inputs, problem.input_names.len(), rows);
     let prediction = predict(
         model,
         &inputs,
         problem.offset_columns.as_deref(),
         &problem.heads,
     )?;
-    let truth = take_rows(&problem.truth, problem.output_names.len(), test);
-    Ok(head_mae(&prediction, &truth, &problem.heads))
+    let truth = take_rows(&problem.truth, problem.output_names.len(), rows);
+    Ok((prediction, truth))
 }

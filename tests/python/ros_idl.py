@@ -254,3 +254,39 @@ class Action(IdlStruct, typename="causal_arm_msgs::msg::dds_::Action_"):
     joint_deltas: t.sequence[t.float64] = field(default_factory=list)
     joint_targets: t.sequence[t.float64] = field(default_factory=list)
     magnet: t.int8 = 0
+
+
+@dataclass
+class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
+    data: t.array[t.uint8, 16] = field(default_factory=lambda: [0] * 16)
+
+
+@dataclass
+class NodeEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEntitiesInfo_"):
+    node_namespace: str = "/"
+    node_name: str = ""
+    reader_gid_seq: t.sequence[Gid] = field(default_factory=list)
+    writer_gid_seq: t.sequence[Gid] = field(default_factory=list)
+
+
+@dataclass
+class ParticipantEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"):
+    """What every rmw publishes on `ros_discovery_info`: its participant's nodes and their
+    readers' and writers' GIDs (rmw_dds_common, 16-byte GIDs since Iron)."""
+    gid: Gid = field(default_factory=Gid)
+    node_entities_info_seq: t.sequence[NodeEntitiesInfo] = field(default_factory=list)
+
+
+def discovery_info_qos() -> Qos:
+    """`ros_discovery_info` as rmw writes it: reliable, transient local, keep last 1."""
+    return Qos(
+        Policy.Reliability.Reliable(max_blocking_time=1_000_000_000),
+        Policy.History.KeepLast(1),
+        Policy.Durability.TransientLocal,
+        Policy.DataRepresentation(use_cdrv0_representation=True),
+    )
+
+
+def gid_of(entity) -> Gid:
+    """The rmw GID of a CycloneDDS entity: its 16-byte GUID."""
+    return Gid(data=list(entity.guid.bytes))

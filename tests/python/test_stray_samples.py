@@ -1,9 +1,12 @@
 """Any ROS 2 node may publish on the graph's topics. A stray or malformed sample must
-neither end a run nor enter the bag: a CycloneDDS participant floods a running `launch` with
-short, NaN and old-stamped actions and joint states, and the bag must still hold every step,
-identical to the in-process run of the same seed."""
+neither end a run nor enter the bag: CycloneDDS participants flood a running `launch` with
+short, NaN and old-stamped actions and joint states, and with well-formed ones of the very
+step being run (duplicates that would take the real sample's place), one participant
+announcing itself as a ROS 2 node on ros_discovery_info as rmw does, the other not at all.
+The bag must still hold every step, identical to the in-process run of the same seed."""
 
 import math
+import re
 import os
 import subprocess
 import time
@@ -20,22 +23,42 @@ def stamp_of(k: int):
 
 
 def strays(k: int):
-    """Malformed actions and joint states for step k, and well-formed ones with old stamps."""
+    """For step k: malformed actions and joint states, well-formed ones with old stamps
+    (stale), and well-formed ones of step k itself (duplicates of the real ones, with
+    other values)."""
     from ros_idl import Action, Header, JointState
     names = [f"iiwa_joint_{i}" for i in range(1, 8)]
     now, old = Header(stamp=stamp_of(k)), Header(stamp=stamp_of(0))
-    actions = [
+    bad_actions = [
         Action(header=now, joint_deltas=[0.0] * 3, joint_targets=[0.1] * 3),
         Action(header=now, joint_deltas=[0.0] * 7, joint_targets=[math.nan] + [0.1] * 6),
         Action(header=now, joint_deltas=[0.0] * 7, joint_targets=[0.1] * 7, magnet=9),
         Action(header=old, joint_deltas=[0.0] * 7, joint_targets=[0.1] * 7),
     ]
-    states = [
+    bad_states = [
         JointState(header=now, name=names[:3], position=[0.0] * 3, velocity=[0.0] * 3, effort=[0.0] * 3),
         JointState(header=now, name=names, position=[math.inf] * 7, velocity=[0.0] * 7, effort=[0.0] * 7),
         JointState(header=old, name=names, position=[0.0] * 7, velocity=[0.0] * 7, effort=[0.0] * 7),
     ]
-    return actions, states
+    duplicates = (
+        [Action(header=now, joint_deltas=[0.0] * 7, joint_targets=[0.1] * 7)],
+        [JointState(header=now, name=names, position=[0.3] * 7, velocity=[0.0] * 7, effort=[0.0] * 7)],
+    )
+    return (bad_actions, bad_states), duplicates
+
+
+def announce(participant, nodes):
+    """Publishes `participant`'s ros_discovery_info as rmw does: `nodes` maps a node name to
+    the writers it owns. Returns the writer, which must live as long as the announcement."""
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.topic import Topic
+    from ros_idl import NodeEntitiesInfo, ParticipantEntitiesInfo, discovery_info_qos, gid_of
+    writer = DataWriter(participant, Topic(participant, "ros_discovery_info", ParticipantEntitiesInfo),
+                        qos=discovery_info_qos())
+    writer.write(ParticipantEntitiesInfo(gid=gid_of(participant), node_entities_info_seq=[
+        NodeEntitiesInfo(node_namespace="/", node_name=name, writer_gid_seq=[gid_of(w) for w in owned])
+        for name, owned in nodes.items()]))
+    return writer
 
 
 def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
@@ -47,11 +70,24 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
     from ros_idl import Action, JointState, ros_default_qos
 
     steps, domain = 3000, 23
-    participant = DomainParticipant(domain)
-    action_writer = DataWriter(participant, Topic(participant, "rt/babbler/action", Action), qos=ros_default_qos(100))
-    state_writer = DataWriter(participant, Topic(participant, "rt/joint_states", JointState), qos=ros_default_qos(100))
-    state_reader = DataReader(participant, Topic(participant, "rt/joint_states", JointState), qos=ros_default_qos(100))
-    env = {**os.environ, "ROS_DOMAIN_ID": str(domain), "RUST_LOG": "warn"}
+
+    def writers_of(p):
+        return (DataWriter(p, Topic(p, "rt/babbler/action", Action), qos=ros_default_qos(100)),
+                DataWriter(p, Topic(p, "rt/joint_states", JointState), qos=ros_default_qos(100)))
+
+    # Three stray participants: a plain DDS program (never announced); the ROS 2 node
+    # /impostor, announced as every rmw does; and one whose nodes take the graph's own
+    # names (a name proves nothing, so its malformed, NaN and stale samples reach the
+    # nodes' sample checks; it sends no well-formed duplicates, which only SROS2 could
+    # keep out).
+    plain, impostor, namesake = (DomainParticipant(domain) for _ in range(3))
+    plain_w, impostor_w, namesake_w = writers_of(plain), writers_of(impostor), writers_of(namesake)
+    announcements = [
+        announce(impostor, {"impostor": impostor_w}),
+        announce(namesake, {"causal_arm_babbler": namesake_w[:1], "causal_arm_sim": namesake_w[1:]}),
+    ]
+    state_reader = DataReader(plain, Topic(plain, "rt/joint_states", JointState), qos=ros_default_qos(100))
+    env = {**os.environ, "ROS_DOMAIN_ID": str(domain), "RUST_LOG": "warn,causal_arm_graph=info"}
     dds = tmp_path / "dds"
     proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", str(steps), "--seed", "4",
                              "--out", str(dds)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -65,20 +101,33 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
     assert latest >= 24, "the graph did not start"
     sent = 0
     for k in range(latest, steps, 7):
-        actions, states = strays(k)
-        for a in actions:
-            action_writer.write(a)
-        for s in states:
-            state_writer.write(s)
-        sent += len(actions) + len(states)
+        bad, duplicates = strays(k)
+        for (action_writer, state_writer), kinds in ((plain_w, (bad, duplicates)), (impostor_w, (bad, duplicates)),
+                                                      (namesake_w, (bad,))):
+            for actions, states in kinds:
+                for a in actions:
+                    action_writer.write(a)
+                for s in states:
+                    state_writer.write(s)
+                sent += len(actions) + len(states)
         if proc.poll() is not None:
             break
         time.sleep(0.002)
     stdout, stderr = proc.communicate(timeout=600)
+    assert len(announcements) == 2
     assert sent > 100
     assert proc.returncode == 0, stderr[-3000:]
     assert f"({steps} of {steps} steps over DDS" in stdout, stdout
+    # The namesake's samples pass the writer check and are refused as malformed or stale.
     assert "ignoring an action" in stderr and "malformed" in stderr, stderr[-3000:]
+    # The impostor's are refused by writer, in all three nodes, and the plain program's
+    # wait unannounced (then are dropped as the quarantine fills).
+    summaries = [line for line in stderr.splitlines() if "of other nodes' writers" in line]
+    for node in ("simulator done", "babbler answered", "recorder ignored"):
+        line = next((line for line in summaries if node in line), None)
+        foreign = re.search(r"ignored (\d+) (?:samples|actions) of other nodes' writers, (\d+) of unannounced",
+                            line or "")
+        assert foreign and int(foreign[1]) > 0 and int(foreign[2]) > 0, (node, summaries)
     local = tmp_path / "local"
     r = run_cli("generate", "exp1", "--steps", str(steps), "--seed", "4", "--out", local)
     assert r.returncode == 0, r.stderr

@@ -15,6 +15,7 @@ pub mod checks;
 pub mod choice;
 pub mod experiment;
 pub mod graph;
+pub mod identity;
 pub mod join;
 pub mod messages;
 pub mod scene;
@@ -25,6 +26,7 @@ pub use checks::{WellFormed, command_of};
 pub use choice::{Choice, one_of, parse_choice};
 pub use experiment::{Experiment, Profile, RunPlan, babbler_seed, bag_keys, sim_seed};
 pub use graph::{GraphSpec, NodeDecl, ParamDecl, ParamDefault, graph};
+pub use identity::{Gid, Origin, Quarantine, QuarantineCounts, Trusted, WriterDirectory};
 pub use join::{JoinCounts, Refusal, StepJoiner, StepParts, fill};
 pub use messages::{
     StateFromMessagesError, StepMessages, action_message, state_from_messages, step_messages,

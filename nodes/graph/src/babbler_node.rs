@@ -1,5 +1,6 @@
 //! `causal_arm_babbler`: answers every simulator state with a babbling action.
 
+use std::rc::Rc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
@@ -12,6 +13,7 @@ use causal_arm_protocol::{StepJoiner, action_message, state_from_messages, topic
 
 use crate::feed::{drain_or_wait, refusal_summary};
 use crate::parts::{StateParts, state_feeds};
+use crate::screen::Screen;
 use crate::{RunParams, node_param_specs, stop_flag};
 
 /// Runs the babbler node until it answered every step of the run or SIGINT/SIGTERM.
@@ -23,7 +25,8 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let stop = stop_flag();
     let recorded = qos::recorded();
-    let feeds = state_feeds::<StateParts>(&mut node, &recorded)?;
+    let screen = Rc::new(Screen::new(&mut node)?);
+    let feeds = state_feeds::<StateParts>(&mut node, &screen, &recorded)?;
     let actions = node.publisher::<Action>(topics::ACTION, recorded)?;
     let mut babbler = Babbler::new(&run.options, &ArmModel::embedded())?;
 

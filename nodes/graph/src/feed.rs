@@ -1,17 +1,22 @@
 //! Subscriptions feeding a [`StepJoiner`]: each topic's samples are filed under their
-//! stamp. The babbler and the recorder each hold one feed per topic they join; what a
-//! joiner refuses (stale or duplicate samples from a stray publisher) and what cannot be
-//! read or is malformed is logged and counted, never fatal: a malformed sample never takes
-//! the place of the step's real one.
+//! stamp. The babbler and the recorder each hold one feed per topic they join. Samples
+//! from writers of nodes other than the topic's trusted publishers are kept out (see
+//! [`Screen`]); what a joiner refuses (stale or duplicate samples) and what cannot be read
+//! or is malformed is logged and counted, never fatal: a stray sample never takes the
+//! place of the step's real one.
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
+use std::rc::Rc;
 use std::time::Duration;
 
 use causal_arm_msgs::builtin_interfaces::msg::Time;
-use causal_arm_protocol::{StepJoiner, StepParts, WellFormed, ns_from_time};
-use ros2_client::Subscription;
+use causal_arm_protocol::{
+    Quarantine, QuarantineCounts, StepJoiner, StepParts, Trusted, WellFormed, ns_from_time,
+};
+use ros2_client::{MessageInfo, Subscription};
 use serde::de::DeserializeOwned;
 
+use crate::screen::Screen;
 use crate::take_next;
 
 /// Stray samples of one kind logged in full before the rest are only counted (the
@@ -28,6 +33,8 @@ pub trait Feed<P> {
     fn wait(&self, joiner: &mut StepJoiner<P>, timeout: Duration) -> bool;
     /// Samples that could not be read or were malformed (see [`WellFormed`]).
     fn unreadable(&self) -> u64;
+    /// Samples kept out for their writer (see [`Screen`]).
+    fn screened(&self) -> QuarantineCounts;
 }
 
 /// A [`Feed`] of message type `M`: `stamp` says which step a sample belongs to and `put`
@@ -38,27 +45,86 @@ pub struct TopicFeed<M, P> {
     stamp: fn(&M) -> &Time,
     put: fn(&mut P, M) -> bool,
     unreadable: Cell<u64>,
+    screen: Rc<Screen>,
+    trusted: Trusted,
+    quarantine: RefCell<Quarantine<M>>,
 }
 
 impl<M, P> TopicFeed<M, P> {
-    /// A feed of `subscription` on `topic`.
+    /// A feed of `subscription` on `topic`, accepting samples only from writers of the
+    /// nodes `screen` trusts for the topic.
     pub fn new(
         topic: &'static str,
         subscription: Subscription<M>,
         stamp: fn(&M) -> &Time,
         put: fn(&mut P, M) -> bool,
-    ) -> Self {
-        Self {
+        screen: Rc<Screen>,
+    ) -> anyhow::Result<Self> {
+        let trusted = screen.trusted(topic)?;
+        Ok(Self {
             topic,
             subscription,
             stamp,
             put,
             unreadable: Cell::new(0),
-        }
+            screen,
+            trusted,
+            quarantine: RefCell::new(Quarantine::default()),
+        })
     }
 }
 
 impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> TopicFeed<M, P> {
+    /// Files `message` if its writer is trusted, holds it while the writer is unknown,
+    /// and drops it (counted) if another node owns the writer.
+    fn screen_and_file(&self, joiner: &mut StepJoiner<P>, message: M, info: &MessageInfo) {
+        let writer = info.publisher_gid().to_bytes16();
+        let before = self.quarantine.borrow().counts();
+        let admitted = self.quarantine.borrow_mut().admit(
+            &self.trusted,
+            &self.screen.directory(),
+            writer,
+            message,
+        );
+        self.log_screened(before);
+        for message in admitted {
+            self.file(joiner, message);
+        }
+    }
+
+    /// Files the held samples whose writers were announced since, as trusted.
+    fn release_held(&self, joiner: &mut StepJoiner<P>) {
+        if self.quarantine.borrow().held() == 0 {
+            return;
+        }
+        let before = self.quarantine.borrow().counts();
+        let released = self
+            .quarantine
+            .borrow_mut()
+            .release(&self.trusted, &self.screen.directory());
+        self.log_screened(before);
+        for message in released {
+            self.file(joiner, message);
+        }
+    }
+
+    fn log_screened(&self, before: QuarantineCounts) {
+        let now = self.quarantine.borrow().counts();
+        if now.foreign > before.foreign && now.foreign <= LOGGED {
+            tracing::warn!(
+                "ignoring a {} sample from a writer of another node than {:?}",
+                self.topic,
+                self.trusted
+            );
+        }
+        if now.unidentified > before.unidentified && now.unidentified <= LOGGED {
+            tracing::warn!(
+                "dropping a {} sample of a writer no ROS 2 participant announced (quarantine full)",
+                self.topic
+            );
+        }
+    }
+
     fn file(&self, joiner: &mut StepJoiner<P>, message: M) {
         if let Err(problem) = message.well_formed() {
             return self.count_unreadable(format!("malformed: {problem}"));
@@ -88,10 +154,12 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> Feed<P> for Topic
     }
 
     fn drain(&self, joiner: &mut StepJoiner<P>) -> usize {
+        self.screen.refresh();
+        self.release_held(joiner);
         let mut arrived = 0;
         loop {
             match self.subscription.take() {
-                Ok(Some((message, _))) => self.file(joiner, message),
+                Ok(Some((message, info))) => self.screen_and_file(joiner, message, &info),
                 Ok(None) => return arrived,
                 Err(e) => self.count_unreadable(format!("{e:?}")),
             }
@@ -100,8 +168,11 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> Feed<P> for Topic
     }
 
     fn wait(&self, joiner: &mut StepJoiner<P>, timeout: Duration) -> bool {
-        match take_next(&self.subscription, timeout) {
-            Some(Ok(message)) => self.file(joiner, message),
+        let taken = take_next(&self.subscription, timeout);
+        self.screen.refresh();
+        self.release_held(joiner);
+        match taken {
+            Some(Ok((message, info))) => self.screen_and_file(joiner, message, &info),
             Some(Err(e)) => self.count_unreadable(e),
             None => return false,
         }
@@ -110,6 +181,10 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> Feed<P> for Topic
 
     fn unreadable(&self) -> u64 {
         self.unreadable.get()
+    }
+
+    fn screened(&self) -> QuarantineCounts {
+        self.quarantine.borrow().counts()
     }
 }
 
@@ -138,8 +213,10 @@ pub fn drain_or_wait<P: StepParts>(
 pub fn refusal_summary<P: StepParts>(feeds: &[Box<dyn Feed<P>>], joiner: &StepJoiner<P>) -> String {
     let counts = joiner.counts();
     let unreadable: u64 = feeds.iter().map(|f| f.unreadable()).sum();
+    let foreign: u64 = feeds.iter().map(|f| f.screened().foreign).sum();
+    let unidentified: u64 = feeds.iter().map(|f| f.screened().unidentified).sum();
     format!(
-        "ignored {} stale, {} duplicate and {unreadable} unreadable or malformed samples; dropped {} incomplete steps",
+        "ignored {foreign} samples of other nodes' writers, {unidentified} of unannounced writers, {} stale, {} duplicate and {unreadable} unreadable or malformed samples; dropped {} incomplete steps",
         counts.stale, counts.duplicate, counts.abandoned
     )
 }

@@ -18,6 +18,7 @@ pub mod flow;
 pub mod parts;
 pub mod plan;
 pub mod recorder_node;
+pub mod screen;
 pub mod sim_node;
 
 pub use plan::{RunParams, node_param_specs};

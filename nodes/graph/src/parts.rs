@@ -1,5 +1,7 @@
 //! The step parts the babbler and the recorder join, and the feeds that fill them.
 
+use std::rc::Rc;
+
 use causal_arm_msgs::RosMessage;
 use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
@@ -12,6 +14,7 @@ use causal_arm_protocol::{StepMessages, StepParts, WellFormed, fill, step_parts,
 use ros2_client::QosProfile;
 
 use crate::feed::{Feed, TopicFeed};
+use crate::screen::Screen;
 
 step_parts! {
     /// What the babbler needs of a step: the topics a `SimState` is read from.
@@ -96,9 +99,9 @@ macro_rules! state_slots {
 state_slots!(StateParts);
 state_slots!(RecordParts);
 
-/// A boxed feed of `topic` on `node`.
+/// A boxed feed of `topic` on `node`, screened by `screen`.
 pub fn feed<M, P>(
-    node: &mut RosNode,
+    (node, screen): (&mut RosNode, &Rc<Screen>),
     topic: &'static str,
     qos: &QosProfile,
     stamp: fn(&M) -> &Time,
@@ -109,45 +112,47 @@ where
     P: StepParts + 'static,
 {
     let subscription = node.subscription::<M>(topic, qos.clone())?;
-    Ok(Box::new(TopicFeed::new(topic, subscription, stamp, put)))
+    let feed = TopicFeed::new(topic, subscription, stamp, put, screen.clone())?;
+    Ok(Box::new(feed))
 }
 
 /// Feeds of the five state topics, in the graph's order.
 pub fn state_feeds<P: StepParts + StateSlots + 'static>(
     node: &mut RosNode,
+    screen: &Rc<Screen>,
     qos: &QosProfile,
 ) -> anyhow::Result<Vec<Box<dyn Feed<P>>>> {
     Ok(vec![
         feed(
-            node,
+            (node, screen),
             topics::JOINT_STATES,
             qos,
             |m: &JointState| &m.header.stamp,
             |p: &mut P, m| fill(p.joint_states(), m),
         )?,
         feed(
-            node,
+            (node, screen),
             topics::EF_POSE,
             qos,
             |m: &PoseStamped| &m.header.stamp,
             |p: &mut P, m| fill(p.ef_pose(), m),
         )?,
         feed(
-            node,
+            (node, screen),
             topics::OBJECT_POSE,
             qos,
             |m: &PoseStamped| &m.header.stamp,
             |p: &mut P, m| fill(p.object_pose(), m),
         )?,
         feed(
-            node,
+            (node, screen),
             topics::OBJECT_COLOR,
             qos,
             |m: &ObjectColor| &m.header.stamp,
             |p: &mut P, m| fill(p.object_color(), m),
         )?,
         feed(
-            node,
+            (node, screen),
             topics::MAGNET_STATE,
             qos,
             |m: &MagnetState| &m.header.stamp,
@@ -159,6 +164,7 @@ pub fn state_feeds<P: StepParts + StateSlots + 'static>(
 /// Feeds of every topic the recorder writes per step.
 pub fn record_feeds(
     node: &mut RosNode,
+    screen: &Rc<Screen>,
     qos: &QosProfile,
 ) -> anyhow::Result<Vec<Box<dyn Feed<RecordParts>>>> {
     /// The stamp of a `/tf` message: its first transform's (an empty one files under 0,
@@ -167,23 +173,23 @@ pub fn record_feeds(
         const ZERO: Time = Time { sec: 0, nanosec: 0 };
         m.transforms.first().map_or(&ZERO, |t| &t.header.stamp)
     }
-    let mut feeds = state_feeds(node, qos)?;
+    let mut feeds = state_feeds(node, screen, qos)?;
     feeds.push(feed(
-        node,
+        (node, screen),
         topics::CLOCK,
         qos,
         |m: &Clock| &m.clock,
         |p: &mut RecordParts, m| fill(&mut p.clock, m),
     )?);
     feeds.push(feed(
-        node,
+        (node, screen),
         topics::TF,
         qos,
         tf_stamp,
         |p: &mut RecordParts, m| fill(&mut p.tf, m),
     )?);
     feeds.push(feed(
-        node,
+        (node, screen),
         topics::ACTION,
         qos,
         |m: &Action| &m.header.stamp,

@@ -4,6 +4,7 @@
 //! are reported, not silently dropped.
 
 use std::path::PathBuf;
+use std::rc::Rc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
@@ -16,6 +17,7 @@ use causal_arm_protocol::{StepJoiner, time_from_ns, topics};
 
 use crate::feed::{drain_or_wait, refusal_summary};
 use crate::parts::{RecordParts, record_feeds};
+use crate::screen::Screen;
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag};
 
 /// Runs the recorder node until every step is written or SIGINT/SIGTERM.
@@ -30,7 +32,8 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     validate(&run.options)?;
     let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let stop = stop_flag();
-    let feeds = record_feeds(&mut node, &qos::recorded())?;
+    let screen = Rc::new(Screen::new(&mut node)?);
+    let feeds = record_feeds(&mut node, &screen, &qos::recorded())?;
     let description = node.subscription::<RosString>(topics::ROBOT_DESCRIPTION, qos::latched())?;
     let ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
 
@@ -78,7 +81,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             break;
         }
     }
-    tracing::info!("{}", refusal_summary(&feeds, &joiner));
+    tracing::info!("recorder {}", refusal_summary(&feeds, &joiner));
     if let Some((stamp, missing)) = joiner.first_missing() {
         tracing::warn!(
             "{} incomplete step(s) not written (first at {stamp} ns lacks {})",

@@ -3,6 +3,7 @@
 //! go out on the graph's topics (never more than `ack_window` steps ahead of the
 //! recorder) and each command is the babbler node's answer to that very state.
 
+use std::collections::VecDeque;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -17,11 +18,14 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{RosArgs, RosNode, qos};
-use causal_arm_protocol::{Command, SimState, StepMessages, command_of, ns_from_time, topics};
+use causal_arm_protocol::{
+    Command, Quarantine, SimState, StepMessages, Trusted, command_of, ns_from_time, topics,
+};
 use ros2_client::{Publisher, Subscription};
 
 use crate::feed::LOGGED;
 use crate::flow::AckWindow;
+use crate::screen::Screen;
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag, take_next};
 
 fn publish<M: causal_arm_msgs::RosMessage>(
@@ -138,21 +142,73 @@ impl StepSink for DdsStatePublisher {
     }
 }
 
-/// The babbler node's answers as the loop's [`CommandSource`]. Answers to other stamps
-/// and malformed ones (any node may publish on the topic) are counted and skipped.
+/// The babbler node's answers as the loop's [`CommandSource`]. Actions of other nodes'
+/// writers are kept out (see [`Screen`]); answers to other stamps and malformed ones are
+/// counted and skipped.
 struct DdsCommands {
     actions: Subscription<Action>,
     timeout: Duration,
     stop: Arc<AtomicBool>,
     ignored: u64,
+    screen: Screen,
+    trusted: Trusted,
+    quarantine: Quarantine<Action>,
+    /// Actions admitted by the screen, not looked at yet.
+    admitted: VecDeque<Action>,
 }
 
 impl DdsCommands {
+    fn new(node: &mut RosNode, timeout: Duration, stop: Arc<AtomicBool>) -> anyhow::Result<Self> {
+        let screen = Screen::new(node)?;
+        Ok(Self {
+            actions: node.subscription::<Action>(topics::ACTION, qos::recorded())?,
+            timeout,
+            stop,
+            ignored: 0,
+            trusted: screen.trusted(topics::ACTION)?,
+            screen,
+            quarantine: Quarantine::default(),
+            admitted: VecDeque::new(),
+        })
+    }
+
     /// Logs the first few skipped actions; the rest are only counted.
     fn skip(&mut self, why: std::fmt::Arguments<'_>) {
         self.ignored += 1;
         if self.ignored <= LOGGED {
             tracing::warn!("ignoring an action: {why}");
+        }
+    }
+
+    /// Waits up to 100 ms for an action; queues what the screen admits.
+    fn receive(&mut self) {
+        let taken = take_next(&self.actions, Duration::from_millis(100));
+        self.screen.refresh();
+        let directory = self.screen.directory();
+        let released = self.quarantine.release(&self.trusted, &directory);
+        self.admitted.extend(released);
+        match taken {
+            Some(Ok((action, info))) => {
+                let writer = info.publisher_gid().to_bytes16();
+                let foreign = self.quarantine.counts().foreign;
+                let admitted = self
+                    .quarantine
+                    .admit(&self.trusted, &directory, writer, action);
+                drop(directory);
+                self.admitted.extend(admitted);
+                let now = self.quarantine.counts().foreign;
+                if now > foreign && now <= LOGGED {
+                    tracing::warn!(
+                        "ignoring an action from a writer of another node than {:?}",
+                        self.trusted
+                    );
+                }
+            }
+            Some(Err(e)) => {
+                drop(directory);
+                self.skip(format_args!("undecodable: {e:#}"));
+            }
+            None => {}
         }
     }
 
@@ -170,17 +226,20 @@ impl DdsCommands {
                     self.timeout
                 )));
             }
-            match take_next(&self.actions, Duration::from_millis(100)) {
-                Some(Ok(a)) if ns_from_time(&a.header.stamp) != stamp => self.skip(format_args!(
+            let Some(a) = self.admitted.pop_front() else {
+                self.receive();
+                continue;
+            };
+            if ns_from_time(&a.header.stamp) != stamp {
+                self.skip(format_args!(
                     "stamped {} ns while waiting for {stamp} ns",
                     ns_from_time(&a.header.stamp)
-                )),
-                Some(Ok(a)) => match command_of(&a) {
-                    Ok(command) => return Ok(command),
-                    Err(problem) => self.skip(format_args!("at {stamp} ns: {problem}")),
-                },
-                Some(Err(e)) => self.skip(format_args!("undecodable: {e:#}")),
-                None => {}
+                ));
+                continue;
+            }
+            match command_of(&a) {
+                Ok(command) => return Ok(command),
+                Err(problem) => self.skip(format_args!("at {stamp} ns: {problem}")),
             }
         }
     }
@@ -208,12 +267,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
 
     let pacing = wait_for_recorder.then(|| AckWindow::new(window, run.step_ns()));
     let mut states = DdsStatePublisher::new(&mut node, pacing)?;
-    let mut commands = DdsCommands {
-        actions: node.subscription::<Action>(topics::ACTION, qos::recorded())?,
-        timeout,
-        stop: stop.clone(),
-        ignored: 0,
-    };
+    let mut commands = DdsCommands::new(&mut node, timeout, stop.clone())?;
     let mut sim = simulator(&run.options)?;
     states.robot_description(&RosString {
         data: EMBEDDED_IIWA_URDF.to_owned(),
@@ -243,9 +297,12 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         Err(e) => return Err(e.into()),
     }
     states.wait_until_recorded(timeout);
+    let screened = commands.quarantine.counts();
     tracing::info!(
-        "simulator done at sim time {:.3} s; ignored {} stray or malformed actions",
+        "simulator done at sim time {:.3} s; ignored {} actions of other nodes' writers, {} of unannounced writers and {} stray or malformed actions",
         states.last_stamp as f64 * 1e-9,
+        screened.foreign,
+        screened.unidentified,
         commands.ignored
     );
     Ok(())

@@ -255,6 +255,40 @@ impl RosNode {
             .map_err(dds_err(format!("publisher on {topic}")))
     }
 
+    /// A subscription to `ros_discovery_info`, where every ROS 2 participant announces its
+    /// nodes and their readers' and writers' GIDs (rmw_dds_common): what tells the graph's
+    /// own writers from strays. Reliable and transient local as rmw publishes it; the
+    /// reader keeps many samples, as one topic instance carries every participant's.
+    pub fn discovery_info(
+        &mut self,
+    ) -> Result<
+        Subscription<causal_arm_msgs::rmw_dds_common::msg::ParticipantEntitiesInfo>,
+        NodeError,
+    > {
+        let qos = qos::discovery_info();
+        let topic = self
+            ._context
+            .domain_participant()
+            .create_topic(
+                "ros_discovery_info".into(),
+                "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_".into(),
+                &(&qos).into(),
+                rustdds::TopicKind::NoKey,
+            )
+            .map_err(|e| NodeError::Dds {
+                what: "topic ros_discovery_info".into(),
+                reason: format!("{e:?}"),
+            })?;
+        self.node_mut()
+            .create_subscription(&topic, Some(qos))
+            .map_err(dds_err("subscription to ros_discovery_info"))
+    }
+
+    /// The node's namespace (`/` unless `-r __ns:=` set one).
+    pub fn namespace(&self) -> &str {
+        self.node_ref().namespace()
+    }
+
     /// A subscription to `M` on `topic` with `qos`.
     pub fn subscription<M: RosMessage>(
         &mut self,

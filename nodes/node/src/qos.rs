@@ -31,6 +31,17 @@ pub fn latched() -> QosProfile {
         .history(History::KeepLast { depth: 1 })
 }
 
+/// `ros_discovery_info`, as rmw writes it (reliable, transient local), read with a deep
+/// history: one topic instance carries every participant's announcements.
+pub fn discovery_info() -> QosProfile {
+    QosProfile::subscription_default()
+        .reliability(Reliability::Reliable {
+            when_full: WhenFull::Wait(Duration::ZERO),
+        })
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 256 })
+}
+
 /// Live monitoring streams for humans (`ros2 topic echo`): reliable, keep last 10,
 /// like rclcpp's default profile.
 pub fn default_reliable() -> QosProfile {

@@ -5,18 +5,16 @@ pub use crate::runtime::stop_flag;
 
 /// Waits up to `timeout` for the next message of `subscription` without polling: the
 /// rustdds reader wakes us as soon as a sample arrives (this is the lock-step's latency).
+/// The sample comes with its [`ros2_client::MessageInfo`] (who wrote it).
 pub fn take_next<M: 'static + serde::de::DeserializeOwned>(
     subscription: &ros2_client::Subscription<M>,
     timeout: std::time::Duration,
-) -> Option<anyhow::Result<M>> {
-    if let Ok(Some((m, _))) = subscription.take() {
-        return Some(Ok(m));
+) -> Option<anyhow::Result<(M, ros2_client::MessageInfo)>> {
+    if let Ok(Some(taken)) = subscription.take() {
+        return Some(Ok(taken));
     }
-    crate::runtime::block_on_timeout(subscription.async_take(), timeout).map(|taken| {
-        taken
-            .map(|(m, _)| m)
-            .map_err(|e| anyhow::anyhow!("reading a sample: {e:?}"))
-    })
+    crate::runtime::block_on_timeout(subscription.async_take(), timeout)
+        .map(|taken| taken.map_err(|e| anyhow::anyhow!("reading a sample: {e:?}")))
 }
 
 /// What one turn of a service node's loop did (see [`serve_until_stopped`]).

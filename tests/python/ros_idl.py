@@ -290,3 +290,8 @@ def discovery_info_qos() -> Qos:
 def gid_of(entity) -> Gid:
     """The rmw GID of a CycloneDDS entity: its 16-byte GUID."""
     return Gid(data=list(entity.guid.bytes))
+
+
+@dataclass
+class Clock(IdlStruct, typename="rosgraph_msgs::msg::dds_::Clock_"):
+    clock: Time = field(default_factory=Time)

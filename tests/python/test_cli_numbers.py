@@ -1,6 +1,8 @@
 """A negative number given to a numeric option is a value, not a flag: the command refuses it
 by name with the rule it breaks (exit 1), instead of clap's "unexpected argument '-1'"."""
 
+import subprocess
+
 import pytest
 
 
@@ -32,3 +34,11 @@ def test_negative_numbers_are_values_refused_by_name(run_cli, tiny_bag, tmp_path
     assert r.returncode == 1, r.stderr
     assert message in r.stderr, r.stderr
     assert "unexpected argument" not in r.stderr
+
+
+def test_a_closed_stdout_ends_the_cli_quietly(causal_arm_bin, tiny_bag):
+    """`causal-arm … | head` must end like any Unix tool when the reader goes away: by
+    SIGPIPE, never by a Rust panic on EPIPE."""
+    r = subprocess.run(f"'{causal_arm_bin}' bag check '{tiny_bag}' | true", shell=True,
+                       capture_output=True, text=True, timeout=60)
+    assert "panicked" not in r.stderr and "Broken pipe" not in r.stderr, r.stderr

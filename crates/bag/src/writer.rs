@@ -109,6 +109,8 @@ pub struct BagWriter {
     chunk_size: u64,
     /// Uncompressed bytes in the open chunk.
     chunk_bytes: u64,
+    /// Messages written so far that lie in closed chunks (handed to the OS).
+    landed: u64,
 }
 
 /// Bytes of a message record besides its data (framing and header).
@@ -206,6 +208,7 @@ impl BagWriter {
             last_ns: 0,
             chunk_size: options.chunk_size.max(1),
             chunk_bytes: 0,
+            landed: 0,
         };
         // As rosbag2 does: the index exists from the start, so a killed run's bag opens.
         bag.write_metadata(&bag.summary())?;
@@ -325,10 +328,30 @@ impl BagWriter {
         Ok(())
     }
 
+    /// Ends the open chunk (if it holds anything) now rather than at its size: what a
+    /// recorder does before it acknowledges steps, so a kill cannot lose them.
+    pub fn land(&mut self) -> Result<(), BagError> {
+        match self.landed < self.total_messages() {
+            true => self.close_chunk(),
+            false => Ok(()),
+        }
+    }
+
+    /// Messages written that lie in closed chunks: a SIGKILL from now on cannot lose
+    /// them (the OS has them; the reader reads a crash tail up to its last whole chunk).
+    pub fn landed_messages(&self) -> u64 {
+        self.landed
+    }
+
+    fn total_messages(&self) -> u64 {
+        self.topics.values().map(|t| t.count).sum()
+    }
+
     /// Ends the open chunk, hands it to the OS, and brings `metadata.yaml` up to it: the
     /// index never counts a message the file does not hold, even after a SIGKILL.
     fn close_chunk(&mut self) -> Result<(), BagError> {
         self.chunk_bytes = 0;
+        self.landed = self.total_messages();
         let result = self
             .writer
             .as_mut()
@@ -343,7 +366,7 @@ impl BagWriter {
         BagSummary {
             dir: self.dir.clone(),
             mcap_path: self.mcap_path.clone(),
-            message_count: self.topics.values().map(|t| t.count).sum(),
+            message_count: self.total_messages(),
             per_topic: self
                 .topics
                 .iter()

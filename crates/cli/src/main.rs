@@ -62,6 +62,12 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
+    // Like any Unix tool, end quietly when the reader of stdout goes away (`| head`)
+    // rather than panic on EPIPE (Rust ignores SIGPIPE unless told otherwise).
+    // SAFETY: sets a signal's default disposition before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let all: Vec<String> = std::env::args().collect();
     let (ros_args, rest) = match RosArgs::split(&all) {
         Ok(split) => split,

@@ -283,6 +283,10 @@ pub fn run(
 pub struct BagSink {
     writer: BagWriter,
     messages: u64,
+    /// Steps written whose chunk may still be open: (stamp, messages written through it).
+    unlanded: std::collections::VecDeque<(u64, u64)>,
+    /// Stamp of the last step whose messages all lie in closed chunks.
+    landed_stamp: Option<u64>,
 }
 
 impl BagSink {
@@ -319,7 +323,41 @@ impl BagSink {
         Ok(Self {
             writer,
             messages: 0,
+            unlanded: std::collections::VecDeque::new(),
+            landed_stamp: None,
         })
+    }
+
+    /// The stamp of the last step a kill of this process can no longer lose: every one of
+    /// its messages lies in a closed chunk. What a recorder may acknowledge.
+    pub fn landed_stamp(&mut self) -> Option<u64> {
+        let landed = self.writer.landed_messages();
+        while let Some(&(stamp, through)) = self.unlanded.front() {
+            if through > landed {
+                break;
+            }
+            self.landed_stamp = Some(stamp);
+            self.unlanded.pop_front();
+        }
+        self.landed_stamp
+    }
+
+    /// Closes the open chunk now, so every step written so far has landed.
+    pub fn land(&mut self) -> Result<(), GenerateError> {
+        Ok(self.writer.land()?)
+    }
+
+    /// Steps written that have not landed yet.
+    pub fn unlanded_steps(&self) -> usize {
+        self.unlanded.len()
+    }
+
+    /// The stamp of the last step written, landed or not.
+    pub fn last_step_stamp(&self) -> Option<u64> {
+        self.unlanded
+            .back()
+            .map(|&(stamp, _)| stamp)
+            .or(self.landed_stamp)
     }
 
     /// Finalizes the bag.
@@ -351,6 +389,9 @@ impl StepSink for BagSink {
     fn action(&mut self, stamp_ns: u64, action: &Action) -> Result<(), GenerateError> {
         self.writer.write(topics::ACTION, stamp_ns, action)?;
         self.messages += 1;
+        // The action is a step's last message: the step has landed once it has.
+        self.unlanded.push_back((stamp_ns, self.messages));
+        self.landed_stamp();
         Ok(())
     }
 }

@@ -1,7 +1,8 @@
 //! `causal_arm_recorder`: subscribes to every topic of the graph and writes the bag,
 //! one complete step at a time, in the same order `causal-arm generate` writes.
 //! SIGINT/SIGTERM finalize the bag with every complete step; incomplete trailing steps
-//! are reported, not silently dropped.
+//! are reported, not silently dropped. A step is acknowledged to the simulator only once
+//! its chunk is closed and handed to the OS, so even a SIGKILL loses no acknowledged step.
 
 use std::path::PathBuf;
 use std::rc::Rc;
@@ -47,6 +48,8 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let mut have_description = false;
     let mut written = 0u64;
     let mut last_activity = Instant::now();
+    let mut acked = None;
+    let land_every = node.params().integer("land_every") as usize;
     let mut result = Ok(());
     while written < total && !stop.load(Ordering::SeqCst) {
         let mut arrived = drain_or_wait(&feeds, &mut joiner, Duration::from_millis(100));
@@ -55,22 +58,29 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             have_description = true;
             arrived = true;
         }
-        let mut last_written = None;
         // Older parts may still be in flight on another topic: write strictly in order.
         while have_description && let Some((stamp, parts)) = joiner.pop_complete(true) {
             let (messages, action) = parts.into_step().expect("complete");
             sink.state(stamp, messages)?;
             sink.action(stamp, &action)?;
             written += 1;
-            last_written = Some(stamp);
-        }
-        if let Some(stamp) = last_written {
-            let _ = ack.publish(Clock {
-                clock: time_from_ns(stamp),
-            });
             if written.is_multiple_of(1000) || written == total {
                 tracing::info!("recorded {written}/{total} steps");
             }
+        }
+        // Acknowledge only steps a kill can no longer lose; land them in a closed chunk
+        // every `land_every` steps, or when the simulator has gone quiet (it may be
+        // waiting for this very acknowledgement).
+        if sink.unlanded_steps() >= land_every || (!arrived && sink.unlanded_steps() > 0) {
+            sink.land()?;
+        }
+        if let Some(stamp) = sink.landed_stamp()
+            && acked != Some(stamp)
+        {
+            let _ = ack.publish(Clock {
+                clock: time_from_ns(stamp),
+            });
+            acked = Some(stamp);
         }
         if arrived {
             last_activity = Instant::now();
@@ -89,8 +99,17 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             missing.join(", ")
         );
     }
+    let last_written = sink.last_step_stamp();
     let summary = sink.finish()?;
-    // Give reliable delivery of the last ack time to reach the simulator.
+    // Every step has landed now: acknowledge the last one, and give reliable delivery time
+    // to reach the simulator.
+    if let Some(stamp) = last_written
+        && acked != Some(stamp)
+    {
+        let _ = ack.publish(Clock {
+            clock: time_from_ns(stamp),
+        });
+    }
     std::thread::sleep(Duration::from_millis(300));
     tracing::info!(
         "wrote {} ({written} steps of {total})",

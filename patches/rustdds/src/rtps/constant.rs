@@ -59,6 +59,12 @@ pub const HEARTBEAT_PERIOD_FAST: crate::structure::duration::Duration =
 // they remain available for repair) rather than being evicted eagerly.
 pub const DEFAULT_WRITER_MAX_SAMPLES: usize = 8192;
 
+// Fallback number of samples a KeepAll TopicCache retains on the Reader side when
+// the Reader QoS does not specify ResourceLimits.max_samples: as many as a Writer
+// retains for repair, so a DataReader may lag that far behind without losing a
+// sample it has not taken yet.
+pub const DEFAULT_KEEP_ALL_READER_MAX_SAMPLES: i32 = DEFAULT_WRITER_MAX_SAMPLES as i32;
+
 // Memory-safety backstop for the per-matched-reader set of sequence numbers a
 // Writer still intends to send (`RtpsReaderProxy::unsent_changes`). In normal
 // operation this set is pruned as samples are pushed or acknowledged, but a

@@ -19,7 +19,7 @@ use crate::{
     typedesc::TypeDesc,
     CreateError, CreateResult,
   },
-  rtps::constant::MAX_WITHHELD_BYTES_PER_TOPIC,
+  rtps::constant::{DEFAULT_KEEP_ALL_READER_MAX_SAMPLES, MAX_WITHHELD_BYTES_PER_TOPIC},
   structure::{sequence_number::SequenceNumber, time::Timestamp},
   GUID,
 };
@@ -189,12 +189,23 @@ impl TopicCache {
     // This prevents cache from growing indefinitely.
     let max_keep_samples = qos
       .resource_limits()
-      .unwrap_or(ResourceLimits {
+      .unwrap_or(match min_keep_samples {
+        // KeepAll promises every sample until the DataReader takes it, but this
+        // cache evicts the oldest ones over the limit whether taken or not, after
+        // the Reader has acknowledged them: a Reliable DataReader that lagged 64
+        // samples behind lost data silently. Keep as many as a Writer retains.
+        History::KeepAll => ResourceLimits {
+          max_samples: DEFAULT_KEEP_ALL_READER_MAX_SAMPLES,
+          max_instances: DEFAULT_KEEP_ALL_READER_MAX_SAMPLES,
+          max_samples_per_instance: DEFAULT_KEEP_ALL_READER_MAX_SAMPLES,
+        },
         // This is some default limits out of the hat, if there was no QoS specification.
         // The purpose of these limits is to prevent excessive memory usage.
-        max_samples: 64,
-        max_instances: 64,
-        max_samples_per_instance: 64,
+        History::KeepLast { .. } => ResourceLimits {
+          max_samples: 64,
+          max_instances: 64,
+          max_samples_per_instance: 64,
+        },
       })
       .max_samples;
     // TODO: We cannot currently keep track of instance counts, because TopicCache
@@ -739,6 +750,32 @@ mod tests {
       ),
     );
     topic_cache.mark_reliably_received_before(writer, SequenceNumber::new(1));
+  }
+
+  // A Reliable KeepAll DataReader that has not taken anything yet must still get
+  // every sample of a lagging burst: none may be evicted unread.
+  #[test]
+  fn keep_all_without_resource_limits_keeps_a_long_unread_backlog() {
+    let mut topic_cache = keep_all_topic_cache();
+    let writer = user_writer();
+    let backlog = 1000;
+    for sn in 1..=backlog {
+      topic_cache.add_change(
+        &Timestamp::now(),
+        CacheChange::new(
+          writer,
+          SequenceNumber::new(sn),
+          WriteOptions::default(),
+          DDSData::new(SerializedPayload::new(
+            RepresentationIdentifier::CDR_LE,
+            vec![0; 100],
+          )),
+        ),
+      );
+      topic_cache.mark_reliably_received_before(writer, SequenceNumber::new(sn + 1));
+      topic_cache.remove_changes_before(Timestamp::ZERO);
+    }
+    assert_eq!(topic_cache.changes.len(), backlog as usize);
   }
 
   #[test]

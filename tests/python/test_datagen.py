@@ -339,6 +339,70 @@ def test_no_acknowledged_step_is_lost_when_the_recorder_is_killed(causal_arm_bin
         assert len(topics[topic]) == len(stamps), topic
 
 
+@pytest.mark.parametrize("victim", ["causal_arm_recorder", "causal_arm_sim", "launcher"])
+def test_a_killed_launch_resumes_into_the_bag_of_an_uninterrupted_run(causal_arm_bin, run_cli, tmp_path,
+                                                                      private_netns, victim):
+    """SIGKILL of a node (or of the launcher) mid-run, then `launch --resume`: the bag ends
+    equal to `generate` of the same seed, no step missing or duplicated."""
+    args = ["exp2", "--episodes", "16", "--seed", "3"]
+    env = {**os.environ, "ROS_DOMAIN_ID": "22", "RUST_LOG": "warn"}
+    out = tmp_path / "resumed"
+    proc = subprocess.Popen([str(causal_arm_bin), "launch", *args, "--out", str(out)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not any(out.glob("*.mcap")):
+        time.sleep(0.2)
+    time.sleep(2.5)
+    assert proc.poll() is None, "the run ended before the kill"
+    children = [int(c) for c in pathlib.Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
+    if victim == "launcher":
+        proc.kill()
+    else:
+        os.kill(next(c for c in children if victim.startswith(pathlib.Path(f"/proc/{c}/comm").read_text().strip())),
+                signal.SIGKILL)
+    try:
+        proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline and any(pathlib.Path(f"/proc/{c}").exists() for c in children):
+        time.sleep(0.1)
+    r = run_cli("launch", *args, "--out", out, "--resume", env=env, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    local = tmp_path / "local"
+    assert run_cli("generate", *args, "--out", local).returncode == 0
+    a, b = _canonical(out), _canonical(local)
+    assert a.keys() == b.keys()
+    for topic in a:
+        assert a[topic] == b[topic], f"{topic} differs from the uninterrupted run"
+
+
+def test_a_killed_generate_resumes_into_the_bag_of_an_uninterrupted_run(causal_arm_bin, run_cli, tmp_path):
+    args = ["exp1", "--steps", "150000", "--seed", "2"]
+    out = tmp_path / "killed"
+    proc = subprocess.Popen([str(causal_arm_bin), "generate", *args, "--out", str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and sum(f.stat().st_size for f in out.glob("*.mcap")) < 3_000_000:
+        time.sleep(0.05)
+    proc.kill()
+    proc.wait()
+    r = run_cli("generate", *args, "--out", out, "--resume", timeout=600)
+    assert r.returncode == 0 and "resumed at step" in r.stdout, r.stderr[-3000:]
+    at = int(r.stdout.split("resumed at step ")[1].split(")")[0])
+    assert 0 < at < 150000, r.stdout
+    local = tmp_path / "local"
+    assert run_cli("generate", *args, "--out", local, timeout=600).returncode == 0
+    # Same messages, byte for byte, in the same order.
+    from mcap.reader import make_reader
+    def messages(bag):
+        with open(next(pathlib.Path(bag).glob("*.mcap")), "rb") as f:
+            return [(c.topic, m.log_time, m.data) for _, c, m in make_reader(f).iter_messages(log_time_order=False)]
+    assert messages(out) == messages(local)
+    r = run_cli("generate", *args, "--out", out, "--resume")
+    assert r.returncode != 0 and "nothing to resume" in r.stderr, r.stderr[-2000:]
+
+
 def test_player_republishes_a_bag(run_cli, causal_arm_bin, tmp_path, private_netns):
     bag = tmp_path / "small"
     assert run_cli("generate", "exp1", "--steps", "40", "--seed", "2", "--out", bag).returncode == 0

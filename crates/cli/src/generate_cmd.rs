@@ -36,8 +36,13 @@ pub struct GenerateArgs {
     #[arg(long)]
     out: PathBuf,
     /// Replace an existing bag at --out.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "resume")]
     overwrite: bool,
+    /// Continue the run that was cut short (killed, crashed, stopped) in --out: keep its
+    /// complete steps, re-run the simulator and babbler to them, and record the rest; the
+    /// bag ends as an uninterrupted run of the seed would write it.
+    #[arg(long)]
+    pub resume: bool,
     /// Standard deviation of the exp1 joint targets, rad.
     #[arg(allow_negative_numbers = true, long, default_value = run_default_text("sigma"))]
     sigma: f64,
@@ -129,11 +134,15 @@ pub fn run(args: &GenerateArgs) -> anyhow::Result<()> {
         &format!("{} seed {}", options.experiment, options.seed),
     );
     let start = Instant::now();
-    let summary = generate(&options, &mut |done, _| {
-        if done % 256 == 0 || done == total {
+    let mut progress = |done: u64, _| {
+        if done.is_multiple_of(256) || done == total {
             bar.set_position(done);
         }
-    })
+    };
+    let summary = match args.resume {
+        true => causal_arm_datagen::generate_resumed(&options, &mut progress),
+        false => generate(&options, &mut progress),
+    }
     .with_context(|| {
         format!(
             "generating {} into {}",
@@ -143,13 +152,17 @@ pub fn run(args: &GenerateArgs) -> anyhow::Result<()> {
     })?;
     bar.finish();
     let secs = start.elapsed().as_secs_f64();
+    let resumed = match summary.resumed_at {
+        0 => String::new(),
+        at => format!(", resumed at step {at}"),
+    };
     println!(
-        "wrote {} ({} steps, {} messages) in {:.1} s ({:.0} steps/s)",
+        "wrote {} ({} steps, {} messages{resumed}) in {:.1} s ({:.0} steps/s)",
         summary.bag_dir.display(),
         summary.steps,
         summary.messages,
         secs,
-        summary.steps as f64 / secs
+        (summary.steps - summary.resumed_at) as f64 / secs
     );
     Ok(())
 }

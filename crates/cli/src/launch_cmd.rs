@@ -93,8 +93,23 @@ pub fn node_commands(options: &GenerateOptions) -> anyhow::Result<Vec<(String, V
 
 /// Runs `causal-arm launch`.
 pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
-    let options = args.generate.options()?;
+    let mut options = args.generate.options()?;
     causal_arm_datagen::validate(&options)?;
+    if args.generate.resume {
+        let start = causal_arm_datagen::resume_point(&options.out, &options)
+            .with_context(|| format!("resuming the run in {}", options.out.display()))?;
+        let total = options.plan.total_steps();
+        if start >= total {
+            bail!(
+                "{} already holds all {total} steps: nothing to resume",
+                options.out.display()
+            );
+        }
+        tracing::info!("resuming at step {start} of {total}");
+        options.start_step = start;
+        // Not one complete step to keep: the run starts afresh in place.
+        options.overwrite |= start == 0;
+    }
     let commands = node_commands(&options)?;
     if args.print_commands {
         for (name, args) in &commands {
@@ -103,6 +118,7 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     if !options.overwrite
+        && options.start_step == 0
         && let Some(found) = causal_arm_bag::existing_bag(&options.out)
     {
         bail!(

@@ -21,6 +21,9 @@ use causal_arm_protocol::{
 use causal_arm_sim::{SimConfig, SimError, Simulator};
 use thiserror::Error;
 
+mod resume;
+pub use resume::{interrupted_dir, resume_point};
+
 /// Everything a generation run needs.
 #[derive(Debug, Clone)]
 pub struct GenerateOptions {
@@ -34,6 +37,8 @@ pub struct GenerateOptions {
     pub out: PathBuf,
     /// Replace an existing bag there.
     pub overwrite: bool,
+    /// The step the run starts at: 0, or the steps a cut-short bag holds when resuming.
+    pub start_step: u64,
     /// Simulator settings (its seed is derived from `seed`).
     pub sim: SimConfig,
     /// Exp 1 babbling settings (seed derived from `seed`).
@@ -82,6 +87,7 @@ impl GenerateOptions {
             seed,
             out: out.into(),
             overwrite: false,
+            start_step: 0,
             sim: SimConfig::default(),
             exp1: Exp1Config::default(),
             exp2: Exp2Config::default(),
@@ -116,6 +122,8 @@ pub struct GenerateSummary {
     pub bag_dir: PathBuf,
     /// Steps simulated.
     pub steps: u64,
+    /// Steps kept from the cut-short bag when resuming (0 for a fresh run).
+    pub resumed_at: u64,
     /// Messages written.
     pub messages: u64,
 }
@@ -233,26 +241,78 @@ pub fn drive(
     sink: &mut dyn StepSink,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<u64, GenerateError> {
+    drive_range(plan, 0..plan.total_steps(), sim, commands, sink, progress)
+}
+
+/// The steps `steps` of the run (indices over all episodes), with `sim` and `commands` as
+/// a run has them before the first of them: fresh for `0..`, or from [`fast_forward`] for
+/// `k..` (what `--resume` does). A new episode begins at every multiple of the episode
+/// length but 0. `progress(done, total)` counts from `steps.start`.
+pub fn drive_range(
+    plan: &RunPlan,
+    steps: std::ops::Range<u64>,
+    sim: &mut Simulator,
+    commands: &mut dyn CommandSource,
+    sink: &mut dyn StepSink,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<u64, GenerateError> {
     let model = sim.model().clone();
     let joint_names = model.joint_names();
     let total = plan.total_steps();
+    let per_episode = plan.steps_per_episode.max(1);
+    let mut state = sim.state();
     let mut done = 0;
-    for episode in 0..plan.episodes {
-        if episode > 0 {
+    for step in steps.start..steps.end.min(total) {
+        let k = step % per_episode;
+        if k == 0 && step > 0 {
             sim.reset_episode();
             commands.new_episode();
+            state = sim.state();
         }
-        let mut state = sim.state();
-        for k in 0..plan.steps_per_episode {
-            sink.state(state.stamp_ns, step_messages(&state, &joint_names))?;
-            let command = commands.command(&state, k)?;
-            sink.action(state.stamp_ns, &action_message(&state, &command, k))?;
-            state = sim.step(&command)?;
-            done += 1;
-            progress(done, total);
-        }
+        sink.state(state.stamp_ns, step_messages(&state, &joint_names))?;
+        let command = commands.command(&state, k)?;
+        sink.action(state.stamp_ns, &action_message(&state, &command, k))?;
+        state = sim.step(&command)?;
+        done += 1;
+        progress(steps.start + done, total);
     }
     Ok(done)
+}
+
+/// Discards what a run writes.
+struct NullSink;
+
+impl StepSink for NullSink {
+    fn robot_description(&mut self, _: &RosString) -> Result<(), GenerateError> {
+        Ok(())
+    }
+    fn state(&mut self, _: u64, _: StepMessages) -> Result<(), GenerateError> {
+        Ok(())
+    }
+    fn action(&mut self, _: u64, _: &Action) -> Result<(), GenerateError> {
+        Ok(())
+    }
+}
+
+/// The simulator and babbler of run `options` as they are after its first `steps` steps,
+/// re-run in this process without writing anything (both are deterministic for a seed):
+/// where `--resume` continues a run that was cut short.
+pub fn fast_forward(
+    options: &GenerateOptions,
+    steps: u64,
+) -> Result<(Simulator, Babbler), GenerateError> {
+    validate(options)?;
+    let mut sim = simulator(options)?;
+    let mut babbler = Babbler::new(options, sim.model())?;
+    drive_range(
+        &options.plan,
+        0..steps,
+        &mut sim,
+        &mut babbler,
+        &mut NullSink,
+        &mut |_, _| {},
+    )?;
+    Ok((sim, babbler))
 }
 
 /// The simulator of a run: `options.sim` seeded from the run's seed.
@@ -409,6 +469,44 @@ pub fn generate(
     Ok(GenerateSummary {
         bag_dir: summary.dir,
         steps,
+        resumed_at: 0,
+        messages,
+    })
+}
+
+/// Continues the cut-short run of `options` in its bag (`generate --resume`): keeps the
+/// bag's complete steps, re-runs the simulator and the babbler to them, and writes the
+/// rest, so the bag ends as an uninterrupted run's.
+pub fn generate_resumed(
+    options: &GenerateOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<GenerateSummary, GenerateError> {
+    validate(options)?;
+    let total = options.plan.total_steps();
+    let start = resume_point(&options.out, options)?;
+    if start >= total {
+        return Err(GenerateError::Options(format!(
+            "{} already holds all {total} steps: nothing to resume",
+            options.out.display()
+        )));
+    }
+    let (mut sink, start) = BagSink::resume(&options.out, options, Some(start))?;
+    let (mut sim, mut babbler) = fast_forward(options, start)?;
+    let run = start..total;
+    let steps = drive_range(
+        &options.plan,
+        run,
+        &mut sim,
+        &mut babbler,
+        &mut sink,
+        progress,
+    )?;
+    let messages = sink.messages;
+    let summary = sink.finish()?;
+    Ok(GenerateSummary {
+        bag_dir: summary.dir,
+        steps: start + steps,
+        resumed_at: start,
         messages,
     })
 }

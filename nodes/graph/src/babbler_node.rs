@@ -5,7 +5,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
-use causal_arm_datagen::{Babbler, validate};
+use causal_arm_datagen::{Babbler, fast_forward, validate};
 use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::msg::Action;
 use causal_arm_node::{RosArgs, RosNode, qos};
@@ -28,7 +28,12 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let screen = Rc::new(Screen::new(&mut node)?);
     let feeds = state_feeds::<StateParts>(&mut node, &screen, &recorded)?;
     let actions = node.publisher::<Action>(topics::ACTION, recorded)?;
-    let mut babbler = Babbler::new(&run.options, &ArmModel::embedded())?;
+    // Resuming at a later step: the babbler as it was then (re-run with its simulator).
+    let start = run.options.start_step;
+    let mut babbler = match start {
+        0 => Babbler::new(&run.options, &ArmModel::embedded())?,
+        _ => fast_forward(&run.options, start)?.1,
+    };
 
     if !node.wait_for_subscribers(&actions, 1, timeout, Duration::from_millis(500), &stop) {
         if stop.load(Ordering::SeqCst) {
@@ -43,7 +48,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let per_episode = run.options.plan.steps_per_episode;
     let total = run.options.plan.total_steps();
     let mut joiner = StepJoiner::<StateParts>::new();
-    let mut answered = 0u64;
+    let mut answered = start;
     let mut last_activity = Instant::now();
     while answered < total && !stop.load(Ordering::SeqCst) {
         if drain_or_wait(&feeds, &mut joiner, Duration::from_millis(100)) {

@@ -68,6 +68,14 @@ impl RunParams {
         options.exp1.sigma = params.double("sigma");
         options.sim.velocity_scale = params.double("velocity_scale");
         options.exp2.move_while_switching = params.bool("move_while_switching");
+        options.start_step = params.integer("start_step") as u64;
+        if options.start_step >= options.plan.total_steps() {
+            anyhow::bail!(
+                "start_step {} is not a step of the run (it has {} steps)",
+                options.start_step,
+                options.plan.total_steps()
+            );
+        }
         Ok(Self { options })
     }
 
@@ -85,6 +93,7 @@ impl RunParams {
             ),
             format!("steps:={}", options.plan.steps_per_episode),
             format!("episodes:={}", options.plan.episodes),
+            format!("start_step:={}", options.start_step),
         ]
     }
 

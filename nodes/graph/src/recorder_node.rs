@@ -38,15 +38,20 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let description = node.subscription::<RosString>(topics::ROBOT_DESCRIPTION, qos::latched())?;
     let ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
 
-    let mut sink = BagSink::create(
-        &PathBuf::from(&output),
-        node.params().bool("overwrite"),
-        &run.options,
-    )?;
+    let start = run.options.start_step;
+    let mut sink = match start {
+        0 => BagSink::create(
+            &PathBuf::from(&output),
+            node.params().bool("overwrite"),
+            &run.options,
+        )?,
+        _ => BagSink::resume(&PathBuf::from(&output), &run.options, Some(start))?.0,
+    };
     let total = run.options.plan.total_steps();
     let mut joiner = StepJoiner::<RecordParts>::new();
-    let mut have_description = false;
-    let mut written = 0u64;
+    // A resumed bag already holds the description.
+    let mut have_description = start > 0;
+    let mut written = start;
     let mut last_activity = Instant::now();
     let mut acked = None;
     let land_every = node.params().integer("land_every") as usize;

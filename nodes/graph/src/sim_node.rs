@@ -9,7 +9,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
-use causal_arm_datagen::{CommandSource, GenerateError, StepSink, drive, simulator, validate};
+use causal_arm_datagen::{
+    CommandSource, GenerateError, StepSink, drive_range, fast_forward, validate,
+};
 use causal_arm_kinematics::EMBEDDED_IIWA_URDF;
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
@@ -265,10 +267,18 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let stop = stop_flag();
 
-    let pacing = wait_for_recorder.then(|| AckWindow::new(window, run.step_ns()));
+    let start = run.options.start_step;
+    let pacing = wait_for_recorder.then(|| {
+        let mut window = AckWindow::new(window, run.step_ns());
+        // Resuming: the bag already holds the steps before `start`.
+        if start > 0 {
+            window.ack(((start - 1) as f64 * run.step_ns()).round() as u64);
+        }
+        window
+    });
     let mut states = DdsStatePublisher::new(&mut node, pacing)?;
     let mut commands = DdsCommands::new(&mut node, timeout, stop.clone())?;
-    let mut sim = simulator(&run.options)?;
+    let (mut sim, _) = fast_forward(&run.options, start)?;
     states.robot_description(&RosString {
         data: EMBEDDED_IIWA_URDF.to_owned(),
     })?;
@@ -291,7 +301,18 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         plan.episodes,
         plan.steps_per_episode
     );
-    match drive(plan, &mut sim, &mut commands, &mut states, &mut |_, _| {}) {
+    if start > 0 {
+        tracing::info!("resuming at step {start}: the simulator re-ran the steps before it");
+    }
+    let steps = start..plan.total_steps();
+    match drive_range(
+        plan,
+        steps,
+        &mut sim,
+        &mut commands,
+        &mut states,
+        &mut |_, _| {},
+    ) {
         Ok(_) => {}
         Err(GenerateError::Stopped) => return Ok(()),
         Err(e) => return Err(e.into()),

@@ -17,18 +17,6 @@ use causal_arm_msgs::std_msgs::msg::String as RosString;
 
 use crate::{BagSink, GenerateError, GenerateOptions, StepSink};
 
-/// The topics of one step, in the order a bag holds them.
-const STEP_TOPICS: [&str; 8] = [
-    topics::JOINT_STATES,
-    topics::EF_POSE,
-    topics::OBJECT_POSE,
-    topics::OBJECT_COLOR,
-    topics::MAGNET_STATE,
-    topics::CLOCK,
-    topics::TF,
-    topics::ACTION,
-];
-
 /// Where a bag is kept while its steps are copied into its replacement.
 pub fn interrupted_dir(dir: &Path) -> PathBuf {
     let mut name = dir.file_name().unwrap_or_default().to_os_string();
@@ -70,12 +58,13 @@ fn read_resumable(dir: &Path, options: &GenerateOptions) -> Result<Resumable, Ge
     let mut topics_at: BTreeMap<u64, Vec<&str>> = BTreeMap::new();
     for m in all
         .iter()
-        .filter(|m| STEP_TOPICS.contains(&m.topic.as_str()))
+        .filter(|m| topics::RECORDED_STEP.contains(&m.topic.as_str()))
     {
         topics_at.entry(m.log_time_ns).or_default().push(&m.topic);
     }
     let complete = |topics: &Vec<&str>| {
-        topics.len() == STEP_TOPICS.len() && STEP_TOPICS.iter().all(|t| topics.contains(t))
+        topics.len() == topics::RECORDED_STEP.len()
+            && topics::RECORDED_STEP.iter().all(|t| topics.contains(t))
     };
     let steps: Vec<u64> = topics_at
         .iter()

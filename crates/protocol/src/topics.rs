@@ -25,9 +25,22 @@ pub const TF: &str = "/tf";
 pub const ROBOT_DESCRIPTION: &str = "/robot_description";
 /// `causal_arm_msgs/msg/Action` from the babbler.
 pub const ACTION: &str = "/babbler/action";
-/// `rosgraph_msgs/msg/Clock` from the recorder: the stamp of the last step it has written
-/// completely (the simulator's flow control).
+/// `rosgraph_msgs/msg/Clock` from the recorder: the stamp of the last step that has landed
+/// in a closed chunk of the bag (the simulator's flow control).
 pub const RECORDER_ACK: &str = "/recorder/ack";
+
+/// The topics of one recorded step, in the order a bag holds them: a step is complete
+/// when it has one message on each.
+pub const RECORDED_STEP: [&str; 8] = [
+    JOINT_STATES,
+    EF_POSE,
+    OBJECT_POSE,
+    OBJECT_COLOR,
+    MAGNET_STATE,
+    CLOCK,
+    TF,
+    ACTION,
+];
 
 /// Every topic of the graph.
 pub const ALL: [&str; 10] = [

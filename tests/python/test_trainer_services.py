@@ -198,6 +198,8 @@ def test_node_trains_from_a_bag_then_serves_what_it_trained(causal_arm_bin, exp1
     (["models:=fm", "lr_schedule:=linear"], 'parameter lr_schedule: unknown learning-rate schedule "linear"'),
     (["models:=fm", "folds:=1"], 'parameter "folds" = 1 is outside its range [2, 1000000]'),
     (["models:=fm", "epochs:=-3"], 'parameter "epochs" = -3 is outside its range'),
+    (["models:=fm", "epochs:=0"], "parameter epochs: 0 would train nothing"),
+    (["models:=fm", "max_folds:=0"], "parameter max_folds: 0 would train nothing"),
     (["models:=fm", "profile:=huge"], 'parameter profile: unknown profile "huge"'),
 ])
 def test_node_refuses_bad_training_parameters(causal_arm_bin, exp1_bag, tmp_path, private_netns, params, message):

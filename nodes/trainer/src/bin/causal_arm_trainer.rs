@@ -82,10 +82,10 @@ fn param_specs() -> Vec<ParamSpec> {
         ),
         ParamSpec::new(
             "epochs",
-            ParamValue::Integer(0),
-            "epochs of every network when training (0: the profile's)",
+            ParamValue::Integer(-1),
+            "epochs of every network when training (-1: the profile's)",
         )
-        .with_range(0.0, 1e9),
+        .with_range(-1.0, 1e9),
         ParamSpec::new(
             "folds",
             ParamValue::Integer(5),
@@ -94,10 +94,10 @@ fn param_specs() -> Vec<ParamSpec> {
         .with_range(2.0, 1e6),
         ParamSpec::new(
             "max_folds",
-            ParamValue::Integer(0),
-            "train only the first N folds (0: all)",
+            ParamValue::Integer(-1),
+            "train only the first N folds (-1: all)",
         )
-        .with_range(0.0, 1e6),
+        .with_range(-1.0, 1e6),
         ParamSpec::new(
             "lr_schedule",
             ParamValue::String("constant".into()),
@@ -166,6 +166,14 @@ fn train_first(
     let bags: Vec<PathBuf> = bags.iter().map(PathBuf::from).collect();
     // Declared ranges keep these non-negative.
     let count = |name: &str| params.integer(name) as usize;
+    // -1 asks for the default; 0 epochs or folds would train nothing.
+    let optional_count = |name: &str| match params.integer(name) {
+        -1 => Ok(None),
+        0 => Err(anyhow!(
+            "parameter {name}: 0 would train nothing; give at least 1, or -1 for the default"
+        )),
+        n => Ok(Some(n as usize)),
+    };
     let requested = params.string("models");
     let requested: ModelRequest = requested
         .parse()
@@ -175,15 +183,9 @@ fn train_first(
             .string("profile")
             .parse()
             .map_err(|e| anyhow!("parameter profile: {e}"))?,
-        epochs: match count("epochs") {
-            0 => None,
-            n => Some(n),
-        },
+        epochs: optional_count("epochs")?,
         folds: count("folds"),
-        max_folds: match count("max_folds") {
-            0 => None,
-            n => Some(n),
-        },
+        max_folds: optional_count("max_folds")?,
         lr_schedule: params
             .string("lr_schedule")
             .parse()

@@ -1,0 +1,6 @@
+//! cargo-fuzz target `dataset` (see `causal_arm_fuzz::Target`); run by `tests/fuzz/run.sh`.
+#![no_main]
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| causal_arm_fuzz::Target::from_name("dataset")
+    .expect("a known target")
+    .run(data));

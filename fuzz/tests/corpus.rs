@@ -3,9 +3,38 @@
 //! (`CAUSAL_ARM_FUZZ_SECONDS` per target, default 8). Findings are saved under
 //! `target/fuzz-findings/` to be turned into corpus entries once fixed.
 
+use std::alloc::{GlobalAlloc, Layout, System};
 use std::time::Duration;
 
 use causal_arm_fuzz::{Target, corpus_root, exercise};
+
+/// Refuses any single allocation over 1 GiB, as libFuzzer's `-malloc_limit_mb` does: a
+/// length field taken on trust shows up as "memory allocation of N bytes failed" (an
+/// abort that fails the test) instead of passing on a machine with enough memory.
+struct Bounded;
+
+const MAX_ALLOCATION: usize = 1 << 30;
+
+unsafe impl GlobalAlloc for Bounded {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        match layout.size() > MAX_ALLOCATION {
+            true => std::ptr::null_mut(),
+            false => unsafe { System.alloc(layout) },
+        }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        match new_size > MAX_ALLOCATION {
+            true => std::ptr::null_mut(),
+            false => unsafe { System.realloc(ptr, layout, new_size) },
+        }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Bounded = Bounded;
 
 #[test]
 fn no_corpus_entry_or_mutation_of_one_panics_or_hangs() {

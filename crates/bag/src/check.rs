@@ -140,7 +140,7 @@ impl<'a> Iterator for Records<'a> {
 /// Decompresses and checks a chunk record's body: sizes before allocating, the
 /// compression stream, the CRC, and the records inside (framing, channels, message times).
 pub(crate) fn open_chunk(body: &[u8]) -> Result<(ChunkHeader, Vec<u8>), String> {
-    let (header, data) = match mcap::parse_record(op::CHUNK, body) {
+    let (header, data) = match crate::bounds::parse_record(op::CHUNK, body) {
         Ok(Record::Chunk { header, data }) => (header, data),
         Ok(_) => unreachable!("parse_record(CHUNK) yields chunks"),
         Err(e) => return Err(format!("chunk header unreadable: {e}")),
@@ -215,17 +215,17 @@ pub(crate) fn chunk_messages(
     for item in Records::new(records, 0) {
         let (offset, opcode, body) =
             item.map_err(|(at, problem)| format!("inside the chunk at {at}: {problem}"))?;
-        let inside = |e: mcap::McapError| format!("record at {offset} inside the chunk: {e}");
+        let inside = |e: String| format!("record at {offset} inside the chunk: {e}");
         match opcode {
             op::SCHEMA | op::CHANNEL => {
-                let record = mcap::parse_record(opcode, body).map_err(inside)?;
+                let record = crate::bounds::parse_record(opcode, body).map_err(inside)?;
                 channels
                     .register(&record)
                     .map_err(|e| format!("{e} (inside the chunk)"))?;
             }
             op::MESSAGE => {
                 let Record::Message { header: m, .. } =
-                    mcap::parse_record(opcode, body).map_err(inside)?
+                    crate::bounds::parse_record(opcode, body).map_err(inside)?
                 else {
                     unreachable!("parse_record(MESSAGE) yields messages")
                 };
@@ -331,7 +331,7 @@ fn footer(bytes: &[u8]) -> Option<(u64, Footer)> {
     if record[0] != op::FOOTER || record[1..9] != 20u64.to_le_bytes() {
         return None;
     }
-    match mcap::parse_record(op::FOOTER, &record[9..]) {
+    match crate::bounds::parse_record(op::FOOTER, &record[9..]) {
         Ok(Record::Footer(f)) => Some((at, f)),
         _ => None,
     }
@@ -547,7 +547,7 @@ impl Walk {
 
     fn message_index(&mut self, at: u64, body: &[u8]) {
         let chunk = self.scan.chunk_count.checked_sub(1);
-        let index = match mcap::parse_record(op::MESSAGE_INDEX, body) {
+        let index = match crate::bounds::parse_record(op::MESSAGE_INDEX, body) {
             Ok(Record::MessageIndex(index)) => index,
             Ok(_) => unreachable!("parse_record(MESSAGE_INDEX) yields message indexes"),
             Err(e) => return self.damage(at, chunk, format!("message index unreadable: {e}")),
@@ -582,7 +582,7 @@ impl Walk {
     }
 
     fn data_end(&mut self, at: u64, body: &[u8]) {
-        let stored = match mcap::parse_record(op::DATA_END, body) {
+        let stored = match crate::bounds::parse_record(op::DATA_END, body) {
             Ok(Record::DataEnd(d)) => d.data_section_crc,
             _ => return self.damage(at, None, "data end record unreadable".into()),
         };
@@ -600,7 +600,7 @@ impl Walk {
     }
 
     fn lone_message(&mut self, at: u64, body: &[u8]) {
-        match mcap::parse_record(op::MESSAGE, body) {
+        match crate::bounds::parse_record(op::MESSAGE, body) {
             Ok(Record::Message { header, .. })
                 if self.channels.defs.contains_key(&header.channel_id) =>
             {
@@ -622,7 +622,7 @@ impl Walk {
     }
 
     fn other(&mut self, at: u64, opcode: u8, body: &[u8]) {
-        let record = match mcap::parse_record(opcode, body) {
+        let record = match crate::bounds::parse_record(opcode, body) {
             Ok(record) => record,
             Err(e) => {
                 let problem = format!("record (opcode {opcode:#04x}) unreadable: {e}");

@@ -12,6 +12,7 @@
 //! a killed run's bag. Reading is checked (framing, sizes, CRCs, indexes, counts): damage
 //! is an error naming file and byte, never read as less data ([`ReadPolicy`]).
 
+mod bounds;
 mod check;
 mod metadata;
 mod reader;

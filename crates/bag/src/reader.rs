@@ -300,7 +300,7 @@ impl BagReader {
 
     fn message(&self, body: &[u8]) -> Result<RawMessage, String> {
         let Ok(mcap::records::Record::Message { header, data }) =
-            mcap::parse_record(mcap::records::op::MESSAGE, body)
+            crate::bounds::parse_record(mcap::records::op::MESSAGE, body)
         else {
             return Err("message record unreadable".into());
         };

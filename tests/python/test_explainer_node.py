@@ -318,7 +318,9 @@ def test_multi_fragment_explanations_reach_cyclonedds_and_our_own_client(exp2, c
 @pytest.mark.xfail(strict=False, reason="(lost in each of 4 runs so far; not strict, as the DDS repair that "
                    "loses it is timing-dependent) a fresh explainer node's first reply is lost when it is 2.3 MB "
                    "(400 rows) or more, while a first reply of 570 KB arrives and, after it, 5.7 MB "
-                   "(1,000 rows) does too. Not yet understood (rustdds reliable writer, first large sample)")
+                   "(1,000 rows) does too. Not yet understood: the fresh writer sends the 5.7 MB as 87 datagrams of 64 KB, "
+                   "and then neither a HEARTBEAT answer nor any repair shows in its debug log (the rustdds-to-rustdds "
+                   "100,000-row case, a lost burst repaired slowly, is fixed: patches/rustdds-fragment-repair.diff)")
 def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply(exp2, causal_arm_bin, private_netns):
     from cyclonedds.domain import DomainParticipant
 

@@ -40,11 +40,16 @@ pub fn init_with_level(level: Option<&str>) {
     let subscriber = tracing_subscriber::registry().with(fmt).with(RosoutLayer);
     if tracing::subscriber::set_global_default(subscriber).is_ok() {
         // rustdds logs through `log`; bridge only its errors (its warnings are noise
-        // such as per-datagram size notes).
+        // such as per-datagram size notes), unless RUST_LOG names rustdds: then what
+        // the filter lets through, for debugging DDS.
         // discovery_db reports ros2-client's own /clock reader (typed builtin_interfaces/Time)
         // meeting our correctly typed rosgraph_msgs/Clock writers as an error on every start.
+        let dds_asked = std::env::var("RUST_LOG").is_ok_and(|v| v.contains("rustdds"));
         if log::set_boxed_logger(Box::new(DdsLogBridge(tracing_log::LogTracer::new()))).is_ok() {
-            log::set_max_level(log::LevelFilter::Error);
+            log::set_max_level(match dds_asked {
+                true => log::LevelFilter::Trace,
+                false => log::LevelFilter::Error,
+            });
         }
     }
 }

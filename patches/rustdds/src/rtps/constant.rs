@@ -39,6 +39,12 @@ pub const REPAIR_INTERVAL_MAX: Duration = Duration::from_millis(100);
 // one reader. A round always sends at least one sample, even a larger one.
 pub const REPAIR_BATCH_MAX_BYTES: usize = 8192;
 
+// Most bytes of requested fragments one repair round (SendRepairFrags) resends
+// to one reader, packed into DATAFRAGs of the reader's datagram budget: 256 KiB
+// per REPAIR_INTERVAL_DEFAULT is about 25 MB/s, a thirtieth of a default socket
+// receive buffer per round.
+pub const REPAIR_FRAGS_BATCH_MAX_BYTES: usize = 256 * 1024;
+
 // Periodic HEARTBEAT period for reliable Writers. The period is adaptive: while
 // some matched reader is behind (has unacknowledged samples), heartbeats are
 // sent at the FAST period to prompt prompt repair (some peers rely on a

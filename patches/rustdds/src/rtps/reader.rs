@@ -1,5 +1,5 @@
 use std::{
-  collections::BTreeMap,
+  collections::{BTreeMap, BTreeSet},
   fmt, iter,
   rc::Rc,
   sync::{Arc, Mutex, MutexGuard},
@@ -1015,12 +1015,23 @@ impl Reader {
 
           // send NackFrags, if any
           let mut nackfrags = Vec::new();
+          let nackfrag_due = writer_proxy
+            .last_nackfrag_sent
+            .is_none_or(|at| at.elapsed() >= NACKFRAG_MIN_INTERVAL);
+          if !nackfrag_due {
+            partially_received.clear();
+          }
           for sn in partially_received {
-            let count = writer_proxy.next_ack_nack_sequence_number();
-            let mut missing_frags = this.missing_frags_for(writer_guid, sn);
-            let first_missing = missing_frags.next();
-            if let Some(first) = first_missing {
-              let missing_frags_set = iter::once(first).chain(missing_frags).collect(); // "undo" the .next() above
+            // One NACK_FRAG names at most 256 fragments from its base. A large
+            // sample that lost thousands of fragments would take one heartbeat
+            // round per 256 of them, so ask for several windows at once.
+            let windows = nackfrag_windows(this.missing_frags_for(writer_guid, sn));
+            if windows.is_empty() {
+              error!("The dog ate my missing fragments.");
+              // Really, this should not happen, as we are above checking
+              // that this SN is really partially (and not fully) received.
+            }
+            for (first, missing_frags_set) in windows {
               let nf = NackFrag {
                 reader_id,
                 writer_id: writer_proxy.remote_writer_guid.entity_id,
@@ -1029,13 +1040,9 @@ impl Reader {
                   first,
                   &missing_frags_set,
                 ),
-                count,
+                count: writer_proxy.next_ack_nack_sequence_number(),
               };
               nackfrags.push(nf);
-            } else {
-              error!("The dog ate my missing fragments.");
-              // Really, this should not happen, as we are above checking
-              // that this SN is really partially (and not fully) received.
             }
           }
 
@@ -1047,6 +1054,7 @@ impl Reader {
           };
 
           if !nackfrags.is_empty() {
+            writer_proxy.last_nackfrag_sent = Some(std::time::Instant::now());
             this.send_nackfrags_to(
               nackfrag_flags,
               nackfrags,
@@ -1483,8 +1491,52 @@ impl fmt::Debug for Reader {
   }
 }
 
+/// Most NACK_FRAG windows (of up to 256 fragments each) a Reader sends for one
+/// sample in answer to one HEARTBEAT: 64 × 256 fragments of 256 bytes ask for
+/// about 4 MiB of repair at once, half a default socket receive buffer.
+const MAX_NACKFRAG_WINDOWS: usize = 64;
+
+/// Least time between two NACK_FRAG requests to one Writer: the repair of the
+/// previous request must have a chance to arrive first.
+const NACKFRAG_MIN_INTERVAL: StdDuration = StdDuration::from_millis(100);
+
+/// Splits missing fragment numbers (ascending) into NACK_FRAG windows: each a base
+/// and the missing fragments within 256 of it.
+fn nackfrag_windows(
+  missing: impl Iterator<Item = FragmentNumber>,
+) -> Vec<(FragmentNumber, BTreeSet<FragmentNumber>)> {
+  let mut windows: Vec<(FragmentNumber, BTreeSet<FragmentNumber>)> = Vec::new();
+  for frag in missing {
+    let full = windows.len() == MAX_NACKFRAG_WINDOWS;
+    match windows.last_mut() {
+      Some((base, set)) if u32::from(frag) < u32::from(*base) + 256 => {
+        set.insert(frag);
+      }
+      _ if full => break,
+      _ => windows.push((frag, BTreeSet::from([frag]))),
+    }
+  }
+  windows
+}
+
 #[cfg(test)]
 mod tests {
+  #[test]
+  fn nackfrag_windows_cover_many_missing_fragments_in_steps_of_256() {
+    use super::{nackfrag_windows, MAX_NACKFRAG_WINDOWS};
+    let missing = (10..=20_000u32).map(FragmentNumber::new);
+    let windows = nackfrag_windows(missing);
+    assert_eq!(windows.len(), MAX_NACKFRAG_WINDOWS);
+    assert_eq!(u32::from(windows[0].0), 10);
+    assert_eq!(windows[0].1.len(), 256);
+    assert_eq!(u32::from(windows[1].0), 266);
+    // Gaps start a window at the next missing fragment.
+    let sparse = [1u32, 2, 300, 301, 900].map(FragmentNumber::new);
+    let windows = nackfrag_windows(sparse.into_iter());
+    let bases: Vec<u32> = windows.iter().map(|(b, _)| u32::from(*b)).collect();
+    assert_eq!(bases, [1, 300, 900]);
+  }
+
   use std::sync::RwLock;
 
   use crate::{

@@ -75,6 +75,12 @@ pub(crate) struct RtpsWriterProxy {
   // These are used for quick tracking of
   last_received_sequence_number: SequenceNumber,
   last_received_timestamp: Timestamp,
+
+  // When the Reader last asked this Writer for missing fragments (NACK_FRAG).
+  // The Writer piggybacks a HEARTBEAT on its repair datagrams; answering each
+  // one with the full request again made the Writer resend fragments already on
+  // their way, overflowing the socket buffer that lost them in the first place.
+  pub last_nackfrag_sent: Option<std::time::Instant>,
 }
 
 impl RtpsWriterProxy {
@@ -97,6 +103,7 @@ impl RtpsWriterProxy {
       ack_base: SequenceNumber::new(1),
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
+      last_nackfrag_sent: None,
     }
   }
 
@@ -331,6 +338,7 @@ impl RtpsWriterProxy {
       ack_base: SequenceNumber::default(),
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
+      last_nackfrag_sent: None,
     }
   } // fn
 

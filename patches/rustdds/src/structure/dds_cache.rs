@@ -803,7 +803,20 @@ mod tests {
 
   #[test]
   fn large_withheld_samples_are_given_up_and_handed_over() {
-    let mut topic_cache = keep_all_topic_cache();
+    // A small explicit limit keeps this test's memory small (a KeepAll cache
+    // without ResourceLimits keeps DEFAULT_KEEP_ALL_READER_MAX_SAMPLES).
+    let mut topic_cache = TopicCache::new(
+      "Square".to_string(),
+      TypeDesc::new("ShapeType".to_string()),
+      &QosPolicyBuilder::new()
+        .history(History::KeepAll)
+        .resource_limits(crate::dds::qos::policy::ResourceLimits {
+          max_samples: 64,
+          max_instances: 64,
+          max_samples_per_instance: 64,
+        })
+        .build(),
+    );
     let writer = user_writer();
     let size = 256 * 1024;
     let max_keep = topic_cache.max_keep_samples as i64;

@@ -10,6 +10,7 @@ Run inside `tests/netns-run`, as the test command does.
 import os
 import pathlib
 import subprocess
+import time
 
 import pytest
 
@@ -28,9 +29,11 @@ def second_interface(private_netns):
     try:
         # The peer namespace exists once unshare has exec'd sleep.
         for _ in range(100):
-            if pathlib.Path(f"/proc/{peer.pid}/ns/net").resolve() != pathlib.Path("/proc/self/ns/net").resolve():
+            if os.readlink(f"/proc/{peer.pid}/ns/net") != os.readlink("/proc/self/ns/net"):
                 break
-            subprocess.run(["sleep", "0.05"])
+            time.sleep(0.05)
+        else:
+            raise AssertionError("the peer namespace did not appear")
         _ip("link", "add", OUT_IF, "type", "veth", "peer", "name", PEER_IF, "netns", str(peer.pid))
         # No IPv6 on it: the kernel's own neighbour discovery and MLD packets would count.
         subprocess.run(["sysctl", "-qw", f"net.ipv6.conf.{OUT_IF}.disable_ipv6=1"], check=True)

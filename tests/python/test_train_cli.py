@@ -123,14 +123,28 @@ def test_factored_auto_says_which_candidate_it_kept(run_cli, bags, tmp_path):
               "--factored-hidden", "16", "--max-folds", "1", "--out", out)
     assert r.returncode == 0, r.stderr
     runs = json.loads((out / "metrics.json").read_text())["models"]["fm-factored"]["runs"]
-    assert [run["label"] for run in runs] == [
+    labels = [run["label"] for run in runs]
+    # The full FM is fitted on the fit rows first, as every head's yardstick.
+    assert labels[0] == "fm-factored full-fm [validation] fold 1/2", labels
+    candidates = [run for run in runs if run.get("selection")]
+    assert [run["label"] for run in candidates] == [
         "fm-factored theta [none] fold 1/2", "fm-factored theta [determined] fold 1/2",
         "fm-factored ef [none] fold 1/2", "fm-factored ef [upstream] fold 1/2"]
-    for head in (runs[:2], runs[2:]):
+    kept_full_fm = False
+    for head in (candidates[:2], candidates[2:]):
+        best = min(head, key=lambda run: run["selection"]["validation_mae"])
+        comparison = best["selection"]["against_full_fm"]
+        assert f"{best['label']}: 2 epochs on" in r.stderr, r.stderr
         kept = [run for run in head if run["selection"]["chosen"]]
-        assert len(kept) == 1
-        assert kept[0]["selection"]["validation_mae"] == min(run["selection"]["validation_mae"] for run in head)
-        assert f"{kept[0]['label']}: 2 epochs on" in r.stderr and "(kept)" in r.stderr, r.stderr
+        if comparison["candidate_better"]:
+            assert kept == [best]
+            assert comparison["difference"] < -2 * comparison["standard_error"]
+        else:
+            assert kept == []
+            kept_full_fm = True
+    # A head that keeps the full FM's gets the full FM refitted on all training rows.
+    assert ("fm-factored full-fm fold 1/2" in labels) == kept_full_fm, labels
+    assert ("the full FM's head is kept" in r.stderr) == kept_full_fm, r.stderr
     r = train(run_cli, bags, "--bag", bags / "exp1", "--model", "fm-factored", "--graph", claims,
               "--factored-auxiliary", "sometimes", "--out", out)
     assert r.returncode != 0 and "none, upstream, determined, auto" in r.stderr, r.stderr

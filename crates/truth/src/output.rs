@@ -14,12 +14,13 @@ fn file_err(path: &Path, problem: impl std::fmt::Display) -> TruthError {
     }
 }
 
-/// Writes `bytes` to a temporary file beside `path`, then renames it: a reader never sees
-/// half a file.
+/// Writes `bytes` to `path` so a reader sees the old file or the whole new one, never
+/// half a file, even after a crash (`atomic-write-file`: temporary sibling, fsync, rename).
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TruthError> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, bytes).map_err(|e| file_err(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| file_err(path, e))
+    use std::io::Write;
+    let mut file = atomic_write_file::AtomicWriteFile::open(path).map_err(|e| file_err(path, e))?;
+    file.write_all(bytes).map_err(|e| file_err(path, e))?;
+    file.commit().map_err(|e| file_err(path, e))
 }
 
 impl Truth {

@@ -19,14 +19,13 @@ fn file_err(path: &Path, problem: impl std::fmt::Display) -> ExplainError {
     }
 }
 
-/// Writes `bytes` to `path` through a temporary sibling and a rename.
+/// Writes `bytes` to `path` so a reader sees the old file or the whole new one, never
+/// half a file, even after a crash (`atomic-write-file`: temporary sibling, fsync, rename).
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension(format!(
-        "{}.tmp",
-        path.extension().and_then(|e| e.to_str()).unwrap_or("")
-    ));
-    std::fs::write(&tmp, bytes).map_err(|e| file_err(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| file_err(path, e))
+    use std::io::Write;
+    let mut file = atomic_write_file::AtomicWriteFile::open(path).map_err(|e| file_err(path, e))?;
+    file.write_all(bytes).map_err(|e| file_err(path, e))?;
+    file.commit().map_err(|e| file_err(path, e))
 }
 
 fn le_bytes_f64(values: &[f64]) -> Vec<u8> {

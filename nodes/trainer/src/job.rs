@@ -33,10 +33,13 @@ fn write_metrics(
         problem,
     };
     let text = serde_json::to_string_pretty(metrics).map_err(|e| failed(e.to_string()))?;
-    let partial = path.with_extension("json.partial");
-    std::fs::write(&partial, text + "\n")
-        .and_then(|()| std::fs::rename(&partial, path))
-        .map_err(|e| failed(format!("cannot write: {e}")))
+    let write = || -> std::io::Result<()> {
+        use std::io::Write;
+        let mut file = atomic_write_file::AtomicWriteFile::open(path)?;
+        file.write_all((text + "\n").as_bytes())?;
+        file.commit()
+    };
+    write().map_err(|e| failed(format!("cannot write: {e}")))
 }
 
 /// Cross-validates `kinds` on `data` and writes `out/<model>.{safetensors,json}` and

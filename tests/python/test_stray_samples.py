@@ -3,7 +3,8 @@ neither end a run nor enter the bag: CycloneDDS participants flood a running `la
 short, NaN and old-stamped actions and joint states, and with well-formed ones of the very
 step being run (duplicates that would take the real sample's place), one participant
 announcing itself as a ROS 2 node on ros_discovery_info as rmw does, the other not at all.
-The bag must still hold every step, identical to the in-process run of the same seed."""
+A forged /recorder/ack of steps not yet published is refused. The bag must still hold
+every step, identical to the in-process run of the same seed."""
 
 import math
 import re
@@ -67,7 +68,7 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
     from cyclonedds.pub import DataWriter
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
-    from ros_idl import Action, JointState, ros_default_qos
+    from ros_idl import Action, Clock, JointState, ros_default_qos
 
     steps, domain = 3000, 23
 
@@ -87,6 +88,9 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
         announce(namesake, {"causal_arm_babbler": namesake_w[:1], "causal_arm_sim": namesake_w[1:]}),
     ]
     state_reader = DataReader(plain, Topic(plain, "rt/joint_states", JointState), qos=ros_default_qos(100))
+    # Forged recorder acknowledgements of steps far ahead: taken, they would let the
+    # simulator run away from the recorder.
+    forged_acks = DataWriter(plain, Topic(plain, "rt/recorder/ack", Clock), qos=ros_default_qos(100))
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain), "RUST_LOG": "warn,causal_arm_graph=info"}
     dds = tmp_path / "dds"
     proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", str(steps), "--seed", "4",
@@ -110,6 +114,7 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
                 for s in states:
                     state_writer.write(s)
                 sent += len(actions) + len(states)
+        forged_acks.write(Clock(clock=stamp_of(k + 10_000)))
         if proc.poll() is not None:
             break
         time.sleep(0.002)
@@ -120,6 +125,7 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
     assert f"({steps} of {steps} steps over DDS" in stdout, stdout
     # The namesake's samples pass the writer check and are refused as malformed or stale.
     assert "ignoring an action" in stderr and "malformed" in stderr, stderr[-3000:]
+    assert "ignoring an acknowledgement of step" in stderr, stderr[-3000:]
     # The impostor's are refused by writer, in all three nodes, and the plain program's
     # wait unannounced (then are dropped as the quarantine fills).
     summaries = [line for line in stderr.splitlines() if "of other nodes' writers" in line]

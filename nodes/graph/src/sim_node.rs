@@ -83,7 +83,12 @@ impl DdsStatePublisher {
     fn take_acks(&mut self) {
         if let Some((acks, window)) = &mut self.acks {
             while let Ok(Some((ack, _))) = acks.take() {
-                window.ack(ns_from_time(&ack.clock));
+                let stamp = ns_from_time(&ack.clock);
+                if !window.ack(stamp) && window.refused() <= LOGGED {
+                    tracing::warn!(
+                        "ignoring an acknowledgement of step {stamp} ns, not yet published"
+                    );
+                }
             }
         }
     }
@@ -134,6 +139,9 @@ impl StepSink for DdsStatePublisher {
         publish(&self.magnet, m.magnet, topics::MAGNET_STATE)?;
         publish(&self.clock, m.clock, topics::CLOCK)?;
         publish(&self.tf, m.tf, topics::TF)?;
+        if let Some((_, window)) = &mut self.acks {
+            window.published(stamp_ns);
+        }
         self.last_stamp = stamp_ns;
         Ok(())
     }
@@ -272,7 +280,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         let mut window = AckWindow::new(window, run.step_ns());
         // Resuming: the bag already holds the steps before `start`.
         if start > 0 {
-            window.ack(((start - 1) as f64 * run.step_ns()).round() as u64);
+            window.resume_after(((start - 1) as f64 * run.step_ns()).round() as u64);
         }
         window
     });

@@ -120,30 +120,22 @@ impl MessageTypeVisitor for TypedRoundTrip<'_> {
     }
 }
 
-/// A scratch bag directory for this thread, holding `data` as its only `.mcap` file.
-fn scratch_bag(data: &[u8]) -> PathBuf {
-    thread_local! {
-        static DIR: PathBuf = {
-            let dir = std::env::temp_dir().join(format!(
-                "causal_arm_fuzz_{}_{:?}",
-                std::process::id(),
-                std::thread::current().id()
-            ));
-            std::fs::create_dir_all(&dir).expect("scratch directory");
-            dir
-        };
-    }
-    DIR.with(|dir| {
-        std::fs::write(dir.join("fuzz_0.mcap"), data).expect("scratch bag");
-        dir.clone()
-    })
+/// A scratch bag directory holding `data` as its only `.mcap` file, removed when dropped
+/// (the corpus test runs every input on a thread of its own).
+fn scratch_bag(data: &[u8]) -> tempfile::TempDir {
+    let dir = tempfile::Builder::new()
+        .prefix("causal_arm_fuzz_")
+        .tempdir()
+        .expect("scratch directory");
+    std::fs::write(dir.path().join("fuzz_0.mcap"), data).expect("scratch bag");
+    dir
 }
 
 fn bag(data: &[u8]) {
     use causal_arm_bag::{BagReader, ReadPolicy};
     let dir = scratch_bag(data);
     for policy in [ReadPolicy::Strict, ReadPolicy::Salvage] {
-        if let Ok(reader) = BagReader::open_with(&dir, policy) {
+        if let Ok(reader) = BagReader::open_with(dir.path(), policy) {
             for message in reader.messages() {
                 if message.is_err() {
                     break;
@@ -155,7 +147,7 @@ fn bag(data: &[u8]) {
 
 fn dataset(data: &[u8]) {
     let dir = scratch_bag(data);
-    if let Ok(set) = causal_arm_dataset::from_bag(&dir, None, ActionSource::Realized) {
+    if let Ok(set) = causal_arm_dataset::from_bag(dir.path(), None, ActionSource::Realized) {
         assert!(set.rows() > 0, "a dataset without transitions was accepted");
     }
 }

@@ -98,14 +98,7 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     if args.generate.resume {
         let start = causal_arm_datagen::resume_point(&options.out, &options)
             .with_context(|| format!("resuming the run in {}", options.out.display()))?;
-        let total = options.plan.total_steps();
-        if start >= total {
-            bail!(
-                "{} already holds all {total} steps: nothing to resume",
-                options.out.display()
-            );
-        }
-        tracing::info!("resuming at step {start} of {total}");
+        tracing::info!("resuming at step {start} of {}", options.plan.total_steps());
         options.start_step = start;
         // Not one complete step to keep: the run starts afresh in place.
         options.overwrite |= start == 0;

@@ -482,17 +482,9 @@ pub fn generate_resumed(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<GenerateSummary, GenerateError> {
     validate(options)?;
-    let total = options.plan.total_steps();
-    let start = resume_point(&options.out, options)?;
-    if start >= total {
-        return Err(GenerateError::Options(format!(
-            "{} already holds all {total} steps: nothing to resume",
-            options.out.display()
-        )));
-    }
-    let (mut sink, start) = BagSink::resume(&options.out, options, Some(start))?;
+    let (mut sink, start) = resume::resume_unfinished(options)?;
     let (mut sim, mut babbler) = fast_forward(options, start)?;
-    let run = start..total;
+    let run = start..options.plan.total_steps();
     let steps = drive_range(
         &options.plan,
         run,

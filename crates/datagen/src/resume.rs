@@ -82,9 +82,25 @@ fn read_resumable(dir: &Path, options: &GenerateOptions) -> Result<Resumable, Ge
 }
 
 /// The complete steps of the bag at `dir`, a cut-short run of `options`: the step a resumed
-/// run starts at.
+/// run starts at. A bag that already holds the whole run has nothing to resume.
 pub fn resume_point(dir: &Path, options: &GenerateOptions) -> Result<u64, GenerateError> {
-    Ok(read_resumable(dir, options)?.steps.len() as u64)
+    unfinished(dir, options, &read_resumable(dir, options)?)
+}
+
+/// The steps `old` holds, or an error if they are the whole run of `options`.
+fn unfinished(
+    dir: &Path,
+    options: &GenerateOptions,
+    old: &Resumable,
+) -> Result<u64, GenerateError> {
+    let (have, total) = (old.steps.len() as u64, options.plan.total_steps());
+    match have < total {
+        true => Ok(have),
+        false => Err(GenerateError::Options(format!(
+            "{} already holds all {total} steps: nothing to resume",
+            dir.display()
+        ))),
+    }
 }
 
 impl BagSink {
@@ -96,7 +112,16 @@ impl BagSink {
         options: &GenerateOptions,
         keep: Option<u64>,
     ) -> Result<(BagSink, u64), GenerateError> {
-        let mut old = read_resumable(dir, options)?;
+        Self::resume_from(dir, options, read_resumable(dir, options)?, keep)
+    }
+
+    /// [`BagSink::resume`] with the cut-short bag already read.
+    fn resume_from(
+        dir: &Path,
+        options: &GenerateOptions,
+        mut old: Resumable,
+        keep: Option<u64>,
+    ) -> Result<(BagSink, u64), GenerateError> {
         let have = old.steps.len() as u64;
         let keep = keep.unwrap_or(have);
         if keep > have {
@@ -134,4 +159,15 @@ impl BagSink {
             .map_err(|e| GenerateError::Options(format!("removing {}: {e}", aside.display())))?;
         Ok((sink, keep))
     }
+}
+
+/// Continues the cut-short run of `options` in its bag, reading the bag once: the sink
+/// holding its complete steps, and the step to go on from.
+pub(crate) fn resume_unfinished(
+    options: &GenerateOptions,
+) -> Result<(BagSink, u64), GenerateError> {
+    let dir = &options.out;
+    let old = read_resumable(dir, options)?;
+    let start = unfinished(dir, options, &old)?;
+    BagSink::resume_from(dir, options, old, Some(start))
 }

@@ -101,62 +101,66 @@ fn main() -> anyhow::Result<()> {
     write_trainer_requests(&root.join("trainer_request"))
 }
 
-/// One valid request of each service for the exp1 model, and a refused one of each.
+/// One valid request of each service for the exp1 model, and refused ones.
 fn write_trainer_requests(dir: &Path) -> anyhow::Result<()> {
     let (sw, aw) = (
         state_names(Experiment::Exp1).len(),
         action_names(Experiment::Exp1).len(),
     );
     let ramp = |n: usize| (0..n).map(|i| 0.01 * i as f64).collect::<Vec<_>>();
-    let next = PredictNextState_Request {
-        state: ramp(2 * sw),
-        action: ramp(2 * aw),
-        rows: 2,
-    };
-    write(
-        dir,
-        "predict_next_state",
-        &with_header("predict_next_state", &to_cdr(&next)?),
-    )?;
-    let wrong = PredictNextState_Request {
-        state: ramp(sw),
-        action: ramp(aw),
-        rows: 3,
-    };
-    write(
-        dir,
-        "predict_next_state_wrong_rows",
-        &with_header("predict_next_state", &to_cdr(&wrong)?),
-    )?;
-    let action = PredictAction_Request {
-        state: ramp(sw),
-        next_state: ramp(sw),
-        rows: 1,
-    };
-    write(
-        dir,
-        "predict_action",
-        &with_header("predict_action", &to_cdr(&action)?),
-    )?;
-    let rollout = Rollout_Request {
-        initial_state: ramp(sw),
-        actions: ramp(3 * aw),
-        steps: 3,
-    };
-    write(dir, "rollout", &with_header("rollout", &to_cdr(&rollout)?))?;
-    let info = GetModelInfo_Request { model: "fm".into() };
-    write(
-        dir,
-        "model_info",
-        &with_header("model_info", &to_cdr(&info)?),
-    )?;
-    let unknown = GetModelInfo_Request {
-        model: "nope".into(),
-    };
-    write(
-        dir,
-        "model_info_unknown",
-        &with_header("model_info", &to_cdr(&unknown)?),
-    )?;
+    // (file name, service, CDR of the request)
+    let requests = [
+        (
+            "predict_next_state",
+            "predict_next_state",
+            to_cdr(&PredictNextState_Request {
+                state: ramp(2 * sw),
+                action: ramp(2 * aw),
+                rows: 2,
+            })?,
+        ),
+        (
+            "predict_next_state_wrong_rows",
+            "predict_next_state",
+            to_cdr(&PredictNextState_Request {
+                state: ramp(sw),
+                action: ramp(aw),
+                rows: 3,
+            })?,
+        ),
+        (
+            "predict_action",
+            "predict_action",
+            to_cdr(&PredictAction_Request {
+                state: ramp(sw),
+                next_state: ramp(sw),
+                rows: 1,
+            })?,
+        ),
+        (
+            "rollout",
+            "rollout",
+            to_cdr(&Rollout_Request {
+                initial_state: ramp(sw),
+                actions: ramp(3 * aw),
+                steps: 3,
+            })?,
+        ),
+        (
+            "model_info",
+            "model_info",
+            to_cdr(&GetModelInfo_Request { model: "fm".into() })?,
+        ),
+        (
+            "model_info_unknown",
+            "model_info",
+            to_cdr(&GetModelInfo_Request {
+                model: "nope".into(),
+            })?,
+        ),
+    ];
+    for (name, service, cdr) in requests {
+        write(dir, name, &with_header(service, &cdr))?;
+    }
     Ok(())
 }

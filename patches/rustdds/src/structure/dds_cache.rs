@@ -735,8 +735,8 @@ mod tests {
     )
   }
 
-  // Adds a sample like a Reliable Reader that is still missing sample 1.
-  fn add_after_missing_first(topic_cache: &mut TopicCache, writer: GUID, sn: i64, size: usize) {
+  // Adds sample `sn` of `size` zero bytes from `writer`.
+  fn add_sample(topic_cache: &mut TopicCache, writer: GUID, sn: i64, size: usize) {
     topic_cache.add_change(
       &Timestamp::now(),
       CacheChange::new(
@@ -749,6 +749,11 @@ mod tests {
         )),
       ),
     );
+  }
+
+  // Adds a sample like a Reliable Reader that is still missing sample 1.
+  fn add_after_missing_first(topic_cache: &mut TopicCache, writer: GUID, sn: i64, size: usize) {
+    add_sample(topic_cache, writer, sn, size);
     topic_cache.mark_reliably_received_before(writer, SequenceNumber::new(1));
   }
 
@@ -760,18 +765,7 @@ mod tests {
     let writer = user_writer();
     let backlog = 1000;
     for sn in 1..=backlog {
-      topic_cache.add_change(
-        &Timestamp::now(),
-        CacheChange::new(
-          writer,
-          SequenceNumber::new(sn),
-          WriteOptions::default(),
-          DDSData::new(SerializedPayload::new(
-            RepresentationIdentifier::CDR_LE,
-            vec![0; 100],
-          )),
-        ),
-      );
+      add_sample(&mut topic_cache, writer, sn, 100);
       topic_cache.mark_reliably_received_before(writer, SequenceNumber::new(sn + 1));
       topic_cache.remove_changes_before(Timestamp::ZERO);
     }

@@ -10,6 +10,7 @@ mod launch_cmd;
 mod play_cmd;
 mod progress;
 mod rollout_cmd;
+mod security_cmd;
 mod service_cmd;
 mod topic_cmd;
 mod train_cmd;
@@ -22,7 +23,7 @@ use clap::{Parser, Subcommand};
     name = "causal-arm",
     version,
     about = "Learn low-level causal relations of a simulated iiwa arm by motor babbling (ROS 2)",
-    after_help = "ROS arguments go after --ros-args, e.g. `causal-arm topic echo /joint_states --type sensor_msgs/msg/JointState --ros-args -r __node:=my_echo`.\nEnvironment: ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_LOCALHOST_ONLY, RMW_IMPLEMENTATION, RUST_LOG."
+    after_help = "ROS arguments go after --ros-args, e.g. `causal-arm topic echo /joint_states --type sensor_msgs/msg/JointState --ros-args -r __node:=my_echo`.\nEnvironment: ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_LOCALHOST_ONLY, RMW_IMPLEMENTATION, ROS_SECURITY_ENABLE, ROS_SECURITY_STRATEGY, ROS_SECURITY_KEYSTORE, ROS_SECURITY_ENCLAVE_OVERRIDE, RUST_LOG."
 )]
 struct Cli {
     /// Read damaged bags anyway: skip damaged chunks with a warning instead of refusing the
@@ -59,6 +60,8 @@ enum Command {
     Intervene(intervene_cmd::InterveneArgs),
     /// Call a service with a JSON request (like `ros2 service call`).
     Service(service_cmd::ServiceArgs),
+    /// SROS2 keystores and enclaves (like `ros2 security`).
+    Security(security_cmd::SecurityArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -105,6 +108,7 @@ fn main() -> std::process::ExitCode {
         Command::Explain(args) => explain_cmd::run(args),
         Command::Intervene(args) => intervene_cmd::run(args),
         Command::Service(args) => service_cmd::run(args, &ros_args),
+        Command::Security(args) => security_cmd::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -5,6 +5,7 @@
 
 use std::net::{IpAddr, Ipv4Addr};
 
+use causal_arm_security::{SecurityEnv, SecurityError, SecurityMode};
 use ros2_client::ServiceMapping;
 use thiserror::Error;
 
@@ -26,7 +27,7 @@ pub enum DiscoveryRange {
 }
 
 /// Why the environment was rejected; each variant names the variable and the value.
-#[derive(Debug, Error, PartialEq, Eq)]
+#[derive(Debug, Error)]
 pub enum EnvError {
     /// `ROS_DOMAIN_ID` is not an integer in 0..=232.
     #[error("ROS_DOMAIN_ID={value:?} is invalid: expected an integer from 0 to {MAX_DOMAIN_ID}")]
@@ -48,7 +49,19 @@ pub enum EnvError {
         /// The offending value.
         value: String,
     },
+    /// A `ROS_SECURITY_*` variable is invalid, or Enforce finds no usable enclave.
+    #[error(transparent)]
+    Security(#[from] SecurityError),
 }
+
+/// `EnvError` is compared in tests; security errors carry I/O and OpenSSL errors, which
+/// are not comparable, so they compare by message.
+impl PartialEq for EnvError {
+    fn eq(&self, other: &Self) -> bool {
+        self.to_string() == other.to_string()
+    }
+}
+impl Eq for EnvError {}
 
 /// The validated ROS 2 environment of one process.
 #[derive(Debug, Clone, PartialEq)]
@@ -61,6 +74,8 @@ pub struct RosEnv {
     /// talk to the rmw the user runs (rmw_cyclonedds_cpp → Cyclone, otherwise Enhanced as
     /// rmw_fastrtps uses).
     pub service_mapping: ServiceMapping,
+    /// `ROS_SECURITY_ENABLE`, `_STRATEGY`, `_KEYSTORE`, `_ENCLAVE_OVERRIDE` (SROS2).
+    pub security: SecurityEnv,
 }
 
 impl RosEnv {
@@ -107,15 +122,22 @@ impl RosEnv {
             Some(rmw) if rmw.contains("cyclonedds") => ServiceMapping::Cyclone,
             _ => ServiceMapping::Enhanced,
         };
+        let security = SecurityEnv::from_lookup(&lookup)?;
         Ok(Self {
             domain_id,
             discovery_range,
             service_mapping,
+            security,
         })
     }
 
-    /// Builds the DDS participant this environment asks for.
-    pub fn domain_participant(&self) -> rustdds::dds::CreateResult<rustdds::DomainParticipant> {
+    /// Builds the DDS participant this environment asks for; with
+    /// [`SecurityMode::Secured`] it authenticates, checks permissions and encrypts with
+    /// the enclave's files through rustdds' DDS Security plugins.
+    pub fn domain_participant(
+        &self,
+        security: &SecurityMode,
+    ) -> rustdds::dds::CreateResult<rustdds::DomainParticipant> {
         let loopback = [IpAddr::V4(Ipv4Addr::LOCALHOST)];
         let builder = rustdds::DomainParticipantBuilder::new(self.domain_id);
         let builder = match self.discovery_range {
@@ -126,6 +148,16 @@ impl RosEnv {
             DiscoveryRange::Off => builder
                 .with_only_networks(loopback)
                 .same_host_loopback(false),
+        };
+        let builder = match security {
+            SecurityMode::Secured { dir, .. } => builder.builtin_security(
+                // sros2 keys are unencrypted PKCS#8, so no password.
+                rustdds::DomainParticipantSecurityConfigFiles::with_ros_default_names(
+                    dir,
+                    String::new(),
+                ),
+            ),
+            SecurityMode::Off | SecurityMode::Unsecured { .. } => builder,
         };
         builder.build()
     }

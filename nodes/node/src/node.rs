@@ -14,6 +14,7 @@ use crate::env::{EnvError, RosEnv};
 use crate::logging;
 use crate::params::{ParamError, ParamSpec, Params, RosArgs};
 use crate::qos;
+use causal_arm_security::SecurityMode;
 
 /// Why a node could not start; every variant says what to fix.
 #[derive(Debug, Error)]
@@ -93,10 +94,19 @@ impl RosNode {
             name: format!("{namespace}/{name}"),
             reason: format!("{e:?}"),
         })?;
-        let participant = env.domain_participant().map_err(|e| NodeError::Dds {
-            what: format!("DDS participant in domain {}", env.domain_id),
-            reason: format!("{e:?}"),
-        })?;
+        let security = env
+            .security
+            .resolve(ros_args.enclave.as_deref())
+            .map_err(EnvError::from)?;
+        if let SecurityMode::Unsecured { reason } = &security {
+            tracing::warn!("{reason}");
+        }
+        let participant = env
+            .domain_participant(&security)
+            .map_err(|e| NodeError::Dds {
+                what: format!("DDS participant in domain {} ({security})", env.domain_id),
+                reason: format!("{e:?}"),
+            })?;
         let context =
             Context::from_domain_participant(participant).map_err(dds_err("ROS context"))?;
         let mut options = NodeOptions::new().enable_rosout(true);
@@ -117,7 +127,7 @@ impl RosNode {
         });
         logging::attach_rosout(node.logging_handle());
         tracing::info!(
-            "node {} up: domain {}, discovery {:?}, use_sim_time {}",
+            "node {} up: domain {}, discovery {:?}, {security}, use_sim_time {}",
             name,
             env.domain_id,
             env.discovery_range,

@@ -191,6 +191,8 @@ pub struct RosArgs {
     pub remaps: Vec<(String, String)>,
     /// `--log-level LEVEL`.
     pub log_level: Option<String>,
+    /// `-e/--enclave /NAME`: the keystore enclave used when security is enabled.
+    pub enclave: Option<String>,
 }
 
 impl RosArgs {
@@ -232,9 +234,10 @@ impl RosArgs {
                         }
                     }
                     "--log-level" => ros.log_level = Some(value_of(item)?),
+                    "-e" | "--enclave" => ros.enclave = Some(value_of(item)?),
                     other => {
                         return Err(ParamError::Syntax(format!(
-                            "unsupported item {other:?} (supported: -p/--param NAME:=VALUE, -r/--remap FROM:=TO, --log-level LEVEL)"
+                            "unsupported item {other:?} (supported: -p/--param NAME:=VALUE, -r/--remap FROM:=TO, --log-level LEVEL, -e/--enclave NAME)"
                         )));
                     }
                 }

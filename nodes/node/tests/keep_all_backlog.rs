@@ -17,6 +17,7 @@ fn node(name: &str) -> RosNode {
         domain_id: 97,
         discovery_range: DiscoveryRange::Localhost,
         service_mapping: ServiceMapping::Enhanced,
+        security: Default::default(),
     };
     RosNode::with_env(env, name, &[], &RosArgs::default()).expect("node")
 }

@@ -1948,6 +1948,14 @@ impl Discovery {
       return;
     }
 
+    // DDS Security has no secure DCPSTopic writer: this one is protected only by the
+    // domain's RTPS protection, which sros2's governance leaves at SIGN, so it would
+    // announce every topic name and type in clear while discovery is meant to be
+    // encrypted. Fast DDS and Cyclone DDS announce no topics at all.
+    if self.security_opt.is_some() {
+      return;
+    }
+
     match self.dcps_topic.writer.write(topic_data.clone(), None) {
       Ok(()) => {
         debug!("Published topic {topic_name} to DCPSTopic");

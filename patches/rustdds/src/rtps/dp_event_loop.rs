@@ -919,7 +919,18 @@ impl DPEventLoop {
             local_writer_sec_info_opt,
             remote_reader_sec_info_opt,
           );
-          if !compatible {
+          if remote_reader_guid.prefix == self.domain_info.domain_participant_guid.prefix {
+            // Our own reader, seen through our own discovery announcements. There is no
+            // remote participant to exchange keys with, so no traffic to it could ever
+            // be encoded; and it would sit in the writer's reader list making every
+            // encode fail for all readers. Intra-participant delivery is not supported
+            // with DDS Security.
+            debug!(
+              "Not matching local writer {local_writer_guid:?} with reader \
+               {remote_reader_guid:?} of the same participant under DDS Security."
+            );
+            false // match_to_reader
+          } else if !compatible {
             security_warn!(
               "Local writer {:?} and remote reader {:?} have incompatible security, ignoring the \
                remote.",
@@ -1008,7 +1019,14 @@ impl DPEventLoop {
             remote_writer_sec_info_opt,
           );
 
-          if !compatible {
+          if remote_writer_guid.prefix == self.domain_info.domain_participant_guid.prefix {
+            // Our own writer: see remote_reader_discovered.
+            debug!(
+              "Not matching local reader {local_reader_guid:?} with writer \
+               {remote_writer_guid:?} of the same participant under DDS Security."
+            );
+            false // match_to_writer
+          } else if !compatible {
             security_warn!(
               "Local reader {:?} and remote writer {:?} have incompatible security, ignoring the \
                remote.",

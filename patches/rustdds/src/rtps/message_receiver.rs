@@ -934,10 +934,16 @@ impl MessageReceiver {
             if receiver_entity_id == EntityId::UNKNOWN {
               let sending_writer_entity_id = decoded_writer_submessage.sender_entity_id();
 
-              if let Some(target_reader)=self.available_readers.values().find(|target_reader| {
-                (
-                // Reader must contain the writer
-                target_reader.contains_writer(sending_writer_entity_id)
+              // Every matching local reader gets it, as without security: a
+              // participant can have several readers of one topic (ROS 2 nodes
+              // do), and delivering to the first one found starved the others.
+              let target_readers: Vec<EntityId> = self
+                .available_readers
+                .values()
+                .filter(|target_reader| {
+                  (
+                  // Reader must contain the writer
+                  target_reader.contains_writer(sending_writer_entity_id)
                     // But there are two exceptions:
                     // 1. SPDP reader must read from unknown SPDP writers
                     //  TODO: This logic here is uglyish. Can we just inject a
@@ -947,18 +953,26 @@ impl MessageReceiver {
                     // 2. ParticipantStatelessReader does not contain any writers, since it is stateless
                     || (sending_writer_entity_id == EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_WRITER
                       && target_reader.entity_id() == EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_READER)
+                  ) && security_plugins_handle
+                    .get_plugins()
+                    .confirm_local_endpoint_guid(
+                      &approved_receiving_datareader_crypto_handles,
+                      &GUID {
+                        prefix: self.dest_guid_prefix,
+                        entity_id: target_reader.entity_id(),
+                      },
                     )
-                    &&
-                    security_plugins_handle.get_plugins()
-                    .confirm_local_endpoint_guid(&approved_receiving_datareader_crypto_handles,
-                      &GUID { prefix: self.dest_guid_prefix,entity_id: target_reader.entity_id() })
-              }){
-                self.handle_writer_submessage(target_reader.entity_id(), decoded_writer_submessage);
-              }else{
+                })
+                .map(|target_reader| target_reader.entity_id())
+                .collect();
+              if target_readers.is_empty() {
                 debug!(
                   "No matching reader found for writer submessage from {sending_writer_entity_id:?} \
                    (receiver entity id is UNKNOWN)"
                 );
+              }
+              for target_reader in target_readers {
+                self.handle_writer_submessage(target_reader, decoded_writer_submessage.clone());
               }
             } else {
               let receiver_guid = GUID {

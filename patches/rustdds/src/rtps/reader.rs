@@ -1293,6 +1293,19 @@ impl Reader {
     destination_guid: GUID,
     dst_locator_list: &[Locator],
   ) {
+    if let Some(handle) = &self.security_plugins {
+      let plugins = handle.get_plugins();
+      if !plugins.submessage_not_protected(&self.guid())
+        && !plugins.has_remote_endpoint_crypto_handle(&self.guid(), &destination_guid)
+      {
+        // Matched before its key exchange finished: answer once the keys are here
+        // (the writer heartbeats again), rather than fail to encode and log an error.
+        return trace!(
+          "Reader {:?}: writer {destination_guid:?} has no crypto handle yet, not sending to it",
+          self.guid()
+        );
+      }
+    }
     match self.security_encode(message, destination_guid) {
       Ok(message) => {
         let bytes = match message.write_to_vec_with_ctx(Endianness::LittleEndian) {

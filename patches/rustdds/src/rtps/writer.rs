@@ -1738,6 +1738,40 @@ impl Writer {
       .fetch_add(1, atomic::Ordering::SeqCst)
   }
 
+  /// The readers this writer can encode for now. A reader matched before its key
+  /// exchange completed has no crypto handle yet; encoding for a list that contains
+  /// it fails for every reader, so one subscriber joining would stop the topic for
+  /// all others. It is left out until its keys arrive, then repaired (reliable) or
+  /// served from the next sample (best effort).
+  #[cfg(feature = "security")]
+  fn readers_with_crypto_handles<'a>(
+    &self,
+    readers: Vec<&'a RtpsReaderProxy>,
+  ) -> Vec<&'a RtpsReaderProxy> {
+    let Some(handle) = &self.security_plugins else {
+      return readers;
+    };
+    let plugins = handle.get_plugins();
+    if plugins.submessage_not_protected(&self.guid()) {
+      return readers;
+    }
+    readers
+      .into_iter()
+      .filter(|reader| {
+        let ready =
+          plugins.has_remote_endpoint_crypto_handle(&self.guid(), &reader.remote_reader_guid);
+        if !ready {
+          trace!(
+            "Writer {:?}: reader {:?} has no crypto handle yet, not sending to it",
+            self.guid(),
+            reader.remote_reader_guid
+          );
+        }
+        ready
+      })
+      .collect()
+  }
+
   #[cfg(feature = "security")]
   fn security_encode(
     &self,
@@ -1815,9 +1849,14 @@ impl Writer {
     // the incoming iterator directly below, avoiding a per-sample Vec
     // allocation on the send hot path.
     #[cfg(feature = "security")]
-    let readers = readers.collect::<Vec<_>>();
+    let readers = self.readers_with_crypto_handles(readers.collect::<Vec<_>>());
 
     let mut blocked: BTreeSet<SocketId> = BTreeSet::new();
+
+    #[cfg(feature = "security")]
+    if readers.is_empty() {
+      return blocked;
+    }
 
     #[cfg(feature = "security")]
     let encoded = self.security_encode(message, &readers);

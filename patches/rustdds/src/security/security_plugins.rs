@@ -265,6 +265,18 @@ impl SecurityPlugins {
       .copied()
   }
 
+  /// Whether `local_endpoint_guid` can encode for `proxy_guid` yet. A proxy matched
+  /// by discovery before its key exchange completed has no handle for a moment.
+  pub fn has_remote_endpoint_crypto_handle(
+    &self,
+    local_endpoint_guid: &GUID,
+    proxy_guid: &GUID,
+  ) -> bool {
+    self
+      .remote_endpoint_crypto_handle_cache
+      .contains_key(&(*local_endpoint_guid, *proxy_guid))
+  }
+
   fn remove_remote_endpoint_crypto_handle(
     &mut self,
     (local_endpoint_guid, proxy_guid): (&GUID, &GUID),
@@ -940,6 +952,7 @@ impl SecurityPlugins {
   ) -> SecurityResult<()> {
     self
       .remove_remote_endpoint_crypto_handle((matched_local_writer_guid, reader_guid))
+      .filter(|handle| !self.remote_endpoint_crypto_handle_in_use(*handle))
       .map_or(Ok(()), |handle| self.crypto.unregister_datareader(handle))
   }
 
@@ -950,7 +963,18 @@ impl SecurityPlugins {
   ) -> SecurityResult<()> {
     self
       .remove_remote_endpoint_crypto_handle((matched_local_reader_guid, writer_guid))
+      .filter(|handle| !self.remote_endpoint_crypto_handle_in_use(*handle))
       .map_or(Ok(()), |handle| self.crypto.unregister_datawriter(handle))
+  }
+
+  /// The crypto plugin gives all endpoints of one remote participant matched with a
+  /// local endpoint one handle. When one of them goes away, the handle and its keys
+  /// must stay for the others.
+  fn remote_endpoint_crypto_handle_in_use(&self, handle: EndpointCryptoHandle) -> bool {
+    self
+      .remote_endpoint_crypto_handle_cache
+      .values()
+      .any(|other| *other == handle)
   }
 }
 

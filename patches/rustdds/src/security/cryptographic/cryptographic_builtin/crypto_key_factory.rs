@@ -447,6 +447,18 @@ impl CryptoKeyFactory for CryptographicBuiltin {
         local_datawriter_crypto_handle,
       );
 
+    // Several readers of one remote participant can match this local endpoint (a
+    // ROS 2 participant has one per subscription or publisher of a topic). They share
+    // the handle of the (remote participant, local endpoint) pair and its key
+    // material, which the first match registered: registering again would fail and
+    // leave the pair without a handle.
+    if self
+      .receiver_specific_encode_key_materials
+      .contains_key(&remote_datareader_crypto_handle)
+    {
+      return Ok(remote_datareader_crypto_handle);
+    }
+
     let receiver_specific_encode_key_materials = match common_encode_key_materials {
       CommonEncodeKeyMaterials::Volatile(use_256_bit_key) => {
         let volatile_key_materials =
@@ -582,6 +594,18 @@ impl CryptoKeyFactory for CryptographicBuiltin {
         remote_participant_crypto_handle,
         local_datareader_crypto_handle,
       );
+
+    // Several writers of one remote participant can match this local endpoint (a
+    // ROS 2 participant has one per subscription or publisher of a topic). They share
+    // the handle of the (remote participant, local endpoint) pair and its key
+    // material, which the first match registered: registering again would fail and
+    // leave the pair without a handle.
+    if self
+      .receiver_specific_encode_key_materials
+      .contains_key(&remote_datawriter_crypto_handle)
+    {
+      return Ok(remote_datawriter_crypto_handle);
+    }
 
     let receiver_specific_encode_key_materials = match common_encode_key_materials {
       CommonEncodeKeyMaterials::Volatile(use_256_bit_key) => {

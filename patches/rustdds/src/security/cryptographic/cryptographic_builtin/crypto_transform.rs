@@ -785,8 +785,6 @@ impl CryptoTransform for CryptographicBuiltin {
       return Err(security_error("Encoded payload smaller than minimum size"));
     }
     let (header_bytes, content_and_footer_bytes) = encoded_buffer.split_at(head_len);
-    let (content_bytes, footer_bytes) =
-      content_and_footer_bytes.split_at(content_and_footer_bytes.len() - foot_len);
 
     // Deserialize crypto header and footer
 
@@ -802,6 +800,29 @@ impl CryptoTransform for CryptographicBuiltin {
         },
       builtin_crypto_header_extra: BuiltinCryptoHeaderExtra(initialization_vector),
     } = crypto_header.try_into()?;
+
+    // The DATA or DATA_FRAG submessage that carried this buffer may have padded it
+    // to a multiple of 4 octets (RTPS 9.4.1: submessages are 4-aligned), so the
+    // footer is not necessarily at the very end. Encrypted content is length
+    // prefixed (CryptoContent, 9.5.2.4, big-endian): the footer follows it.
+    let content_len = match transformation_kind {
+      BuiltinCryptoTransformationKind::CRYPTO_TRANSFORMATION_KIND_AES128_GCM
+      | BuiltinCryptoTransformationKind::CRYPTO_TRANSFORMATION_KIND_AES256_GCM => {
+        let prefix: [u8; 4] = content_and_footer_bytes[..4]
+          .try_into()
+          .map_err(|_| security_error("Encoded payload smaller than minimum size"))?;
+        let content_len = 4 + u32::from_be_bytes(prefix) as usize;
+        if content_len + foot_len > content_and_footer_bytes.len() {
+          return Err(security_error(
+            "CryptoContent length exceeds the encoded payload",
+          ));
+        }
+        content_len
+      }
+      _ => content_and_footer_bytes.len() - foot_len,
+    };
+    let (content_bytes, rest) = content_and_footer_bytes.split_at(content_len);
+    let footer_bytes = &rest[..foot_len];
 
     let BuiltinCryptoFooter { common_mac, .. } = BuiltinCryptoFooter::try_from(footer_bytes)?;
 

@@ -103,7 +103,14 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
         // Not one complete step to keep: the run starts afresh in place.
         options.overwrite |= start == 0;
     }
-    let commands = node_commands(&options)?;
+    let mut commands = node_commands(&options)?;
+    // The launcher's enclave is the graph's: each node joins with it, as a launch file
+    // passing `--enclave` to every node would.
+    if let Some(enclave) = &ros_args.enclave {
+        for (_, node_args) in &mut commands {
+            node_args.extend(["--enclave".to_owned(), enclave.clone()]);
+        }
+    }
     if args.print_commands {
         for (name, args) in &commands {
             println!("{name} {}", args.join(" "));

@@ -547,6 +547,17 @@ mod tests {
     fn malformed_ros_args_are_rejected() {
         assert!(RosArgs::split(&args(&["--ros-args", "-p", "steps=5"])).is_err());
         assert!(RosArgs::split(&args(&["--ros-args", "-p"])).is_err());
-        assert!(RosArgs::split(&args(&["--ros-args", "--enclave", "x"])).is_err());
+        assert!(RosArgs::split(&args(&["--ros-args", "--params-file", "x"])).is_err());
+        assert!(RosArgs::split(&args(&["--ros-args", "--enclave"])).is_err());
+    }
+
+    #[test]
+    fn enclave_is_taken_as_rcl_does() {
+        let (ros, rest) =
+            RosArgs::split(&args(&["run", "--ros-args", "-e", "/a/b", "--"])).unwrap();
+        assert_eq!(ros.enclave.as_deref(), Some("/a/b"));
+        assert_eq!(rest, vec!["run".to_string()]);
+        let (ros, _) = RosArgs::split(&args(&["--ros-args", "--enclave", "/c"])).unwrap();
+        assert_eq!(ros.enclave.as_deref(), Some("/c"));
     }
 }

@@ -4,8 +4,8 @@
   credentials receives none of them (the unsecured control shows the same subscriber does).
 - A loopback capture of the secured pair holds no plaintext: no joint name, no topic name, no
   type name (the unsecured control capture holds them, so the capture does see traffic).
-- The secured graph records a complete bag, equal to `generate` of the same seed (known
-  rustdds key-exchange race: xfail, not strict).
+- The secured graph (four participants, one enclave given to `launch --enclave`) records a
+  complete bag, equal to `generate` of the same seed.
 - Under `ROS_SECURITY_STRATEGY=Enforce` a node without an enclave cannot start;
   `Permissive` runs it unsecured and says so.
 Run inside `tests/netns-run`, as the test command does (raw capture needs the namespace's
@@ -117,13 +117,6 @@ class Eavesdropper:
         self.thread.join()
 
 
-def _launch(run_cli, out, env, steps=STEPS):
-    r = run_cli("launch", "exp1", "--steps", str(steps), "--seed", "4", "--out", out, env=env, timeout=300)
-    assert r.returncode == 0, r.stderr[-3000:]
-    assert f"{steps} of {steps} steps" in r.stdout, r.stdout
-    return r
-
-
 JOINT_STATE = '{"name": ["iiwa_joint_1", "iiwa_joint_2"], "position": [0.25, -0.5]}'
 
 
@@ -170,11 +163,12 @@ def test_control_the_same_eavesdropper_and_capture_see_an_unsecured_pair(causal_
     assert capture.contains(b"iiwa_joint_1") > 0 and capture.contains(b"joint_states") > 0
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "rustdds 0.15.1 DDS Security key exchange: in about 1 of 6 secured launches (4 participants) "
-    "one endpoint pair never gets the writer's keys and the graph stalls; see patches/README.md"))
 def test_secured_graph_records_a_complete_bag_equal_to_generate(run_cli, keystore, tmp_path, private_netns):
-    r = _launch(run_cli, tmp_path / "secured", _secured_env(keystore))
+    env = _secured_env(keystore, enclave=None)
+    r = run_cli("launch", "exp1", "--steps", str(STEPS), "--seed", "4", "--out", tmp_path / "secured",
+                "--ros-args", "--enclave", ENCLAVE, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert f"{STEPS} of {STEPS} steps" in r.stdout, r.stdout
     assert "WITHOUT security" not in r.stderr
     local = tmp_path / "local"
     g = run_cli("generate", "exp1", "--steps", str(STEPS), "--seed", "4", "--out", local)

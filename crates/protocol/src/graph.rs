@@ -162,6 +162,14 @@ impl GraphSpec {
     pub fn node(&self, name: &str) -> Option<&NodeDecl> {
         self.nodes.iter().find(|n| n.name == name)
     }
+
+    /// The nodes that subscribe `topic`: the readers a publisher must see matched before
+    /// its first sample, which a volatile topic would not deliver to a later reader.
+    pub fn subscribers_of<'a>(&'a self, topic: &'a str) -> impl Iterator<Item = &'a NodeDecl> {
+        self.nodes
+            .iter()
+            .filter(move |n| n.subscribes.iter().any(|t| t == topic))
+    }
 }
 
 /// Unique names, defaults within range and choices, ranges only on numbers.
@@ -256,6 +264,16 @@ mod tests {
             ParamDefault::Double(0.35)
         );
         assert!(g.node("causal_arm_recorder").unwrap().ends_run);
+        let readers = |t| {
+            let mut names: Vec<&str> = g.subscribers_of(t).map(|n| n.name.as_str()).collect();
+            names.sort();
+            names
+        };
+        assert_eq!(
+            readers(crate::topics::ACTION),
+            ["causal_arm_recorder", "causal_arm_sim"]
+        );
+        assert_eq!(readers(crate::topics::TF), ["causal_arm_recorder"]);
         // Every topic published is subscribed by someone, and the other way round.
         for node in &g.nodes {
             for t in &node.subscribes {

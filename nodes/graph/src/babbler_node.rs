@@ -35,13 +35,23 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         _ => fast_forward(&run.options, start)?.1,
     };
 
-    if !node.wait_for_subscribers(&actions, 1, timeout, Duration::from_millis(500), &stop) {
+    // The simulator and, when the run is recorded, the recorder: an action written before
+    // the recorder's reader matched would never reach the bag.
+    let with_recorder = node.params().bool("wait_for_recorder");
+    let needed = crate::expected_readers(topics::ACTION, with_recorder)?.max(1);
+    let settle = Duration::from_millis(500);
+    if !node.wait_for_subscribers(&actions, needed, timeout, settle, &stop) {
         if stop.load(Ordering::SeqCst) {
             return Ok(());
         }
         bail!(
-            "no subscriber of {} (the simulator) within {timeout:?}",
-            topics::ACTION
+            "{needed} subscriber(s) of {} (the simulator{}) did not appear within {timeout:?}",
+            topics::ACTION,
+            if with_recorder {
+                " and the recorder"
+            } else {
+                ""
+            }
         );
     }
 

@@ -6,6 +6,18 @@ use causal_arm_node::{ParamSpec, ParamValue, Params};
 use causal_arm_protocol::graph::graph;
 use causal_arm_protocol::{Experiment, ParamDecl, ParamDefault, Profile, RunPlan};
 
+/// How many readers of `topic` the graph file declares, leaving out the recorder (the
+/// node publishing its acknowledgements) when the run is not recorded: a node publishing
+/// on a volatile topic waits for them, since a sample written before a reader matched
+/// never reaches it (with DDS Security each match also waits for a key exchange).
+pub fn expected_readers(topic: &str, with_recorder: bool) -> anyhow::Result<usize> {
+    let ack = causal_arm_protocol::topics::RECORDER_ACK;
+    Ok(graph()?
+        .subscribers_of(topic)
+        .filter(|n| with_recorder || !n.publishes.iter().any(|t| t == ack))
+        .count())
+}
+
 /// The ROS parameter declarations of `node`: the run's parameters and the node's own, as
 /// `launch_scripts/graph.toml` declares them.
 pub fn node_param_specs(node: &str) -> anyhow::Result<Vec<ParamSpec>> {

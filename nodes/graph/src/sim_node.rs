@@ -56,6 +56,43 @@ struct DdsStatePublisher {
 }
 
 impl DdsStatePublisher {
+    /// Waits for the graph file's readers of each state topic; `Ok(false)` when stopped.
+    fn wait_for_readers(
+        &self,
+        node: &mut RosNode,
+        with_recorder: bool,
+        timeout: Duration,
+        stop: &AtomicBool,
+    ) -> anyhow::Result<bool> {
+        // `/clock` is left out: every ROS node reads it (ros2-client's own clock reader),
+        // so its count says nothing; the recorder creates its `/clock` reader before its
+        // `/tf` one.
+        macro_rules! wait {
+            ($publisher:expr, $topic:expr, $settle:expr) => {
+                let needed = crate::expected_readers($topic, with_recorder)?;
+                if needed > 0
+                    && !node.wait_for_subscribers($publisher, needed, timeout, $settle, stop)
+                {
+                    if stop.load(Ordering::SeqCst) {
+                        return Ok(false);
+                    }
+                    bail!(
+                        "{needed} subscriber(s) of {} did not appear within {timeout:?}",
+                        $topic
+                    );
+                }
+            };
+        }
+        let none = Duration::ZERO;
+        wait!(&self.joint_states, topics::JOINT_STATES, none);
+        wait!(&self.ef_pose, topics::EF_POSE, none);
+        wait!(&self.object_pose, topics::OBJECT_POSE, none);
+        wait!(&self.object_color, topics::OBJECT_COLOR, none);
+        wait!(&self.magnet, topics::MAGNET_STATE, none);
+        wait!(&self.tf, topics::TF, Duration::from_millis(500));
+        Ok(true)
+    }
+
     fn new(node: &mut RosNode, paced_by: Option<AckWindow>) -> anyhow::Result<Self> {
         let recorded = qos::recorded();
         let acks = match paced_by {
@@ -291,17 +328,10 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         data: EMBEDDED_IIWA_URDF.to_owned(),
     })?;
 
-    // Wait until the babbler (and the recorder) subscribe, then let their side settle.
-    let needed = if wait_for_recorder { 2 } else { 1 };
-    let settle = Duration::from_millis(500);
-    if !node.wait_for_subscribers(&states.joint_states, needed, timeout, settle, &stop) {
-        if stop.load(Ordering::SeqCst) {
-            return Ok(());
-        }
-        bail!(
-            "{needed} subscriber(s) of {} did not appear within {timeout:?}",
-            topics::JOINT_STATES
-        );
+    // Wait until every reader the graph declares (the babbler, the recorder) has matched
+    // every state topic, then let their side settle.
+    if !states.wait_for_readers(&mut node, wait_for_recorder, timeout, &stop)? {
+        return Ok(());
     }
     let plan = &run.options.plan;
     tracing::info!(

@@ -952,7 +952,6 @@ impl SecurityPlugins {
   ) -> SecurityResult<()> {
     self
       .remove_remote_endpoint_crypto_handle((matched_local_writer_guid, reader_guid))
-      .filter(|handle| !self.remote_endpoint_crypto_handle_in_use(*handle))
       .map_or(Ok(()), |handle| self.crypto.unregister_datareader(handle))
   }
 
@@ -963,19 +962,9 @@ impl SecurityPlugins {
   ) -> SecurityResult<()> {
     self
       .remove_remote_endpoint_crypto_handle((matched_local_reader_guid, writer_guid))
-      .filter(|handle| !self.remote_endpoint_crypto_handle_in_use(*handle))
       .map_or(Ok(()), |handle| self.crypto.unregister_datawriter(handle))
   }
 
-  /// The crypto plugin gives all endpoints of one remote participant matched with a
-  /// local endpoint one handle. When one of them goes away, the handle and its keys
-  /// must stay for the others.
-  fn remote_endpoint_crypto_handle_in_use(&self, handle: EndpointCryptoHandle) -> bool {
-    self
-      .remote_endpoint_crypto_handle_cache
-      .values()
-      .any(|other| *other == handle)
-  }
 }
 
 /// Interface for using the CryptoKeyExchange of the Cryptographic plugin

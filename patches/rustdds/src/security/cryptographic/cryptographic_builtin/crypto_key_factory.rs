@@ -20,54 +20,47 @@ impl CryptographicBuiltin {
     self.crypto_handle_counter
   }
 
-  fn get_or_generate_matched_remote_endpoint_crypto_handle(
+  /// A new handle for one remote endpoint matched with a local one. Each remote
+  /// endpoint gets its own: several readers (or writers) of one remote participant
+  /// can match the same local endpoint (a ROS 2 participant has one per node and
+  /// subscription), and each has its own key material and receiver-specific key. A
+  /// handle shared per (remote participant, local endpoint) could hold only one of
+  /// them, so the others' submessages failed to decode.
+  fn generate_matched_remote_endpoint_crypto_handle(
     &mut self,
     remote_participant_crypto_handle: ParticipantCryptoHandle,
     local_endpoint_crypto_handle: EndpointCryptoHandle,
   ) -> EndpointCryptoHandle {
-    // If a corresponding handle exists, get and return
-    if let Some(remote_endpoint_crypto_handle) = self
+    let remote_endpoint_crypto_handle = self.generate_crypto_handle();
+    // Associate it with the remote participant
+    self.endpoint_to_participant.insert(
+      remote_endpoint_crypto_handle,
+      remote_participant_crypto_handle,
+    );
+    // Associate it with the local endpoint
+    self
+      .matched_local_endpoint
+      .insert(remote_endpoint_crypto_handle, local_endpoint_crypto_handle);
+    // Insert it to the HashMap corresponding to the local endpoint
+    if let Some(remote_participant_to_remote_endpoint) = self
       .matched_remote_endpoint
-      .get(&local_endpoint_crypto_handle)
-      .and_then(|remote_participant_to_remote_endpoint| {
-        remote_participant_to_remote_endpoint.get(&remote_participant_crypto_handle)
-      })
+      .get_mut(&local_endpoint_crypto_handle)
     {
-      *remote_endpoint_crypto_handle
-    } else {
-      // Otherwise generate a new handle
-      let remote_endpoint_crypto_handle = self.generate_crypto_handle();
-      // Associate it with the remote participant
-      self.endpoint_to_participant.insert(
-        remote_endpoint_crypto_handle,
+      remote_participant_to_remote_endpoint.insert(
         remote_participant_crypto_handle,
+        remote_endpoint_crypto_handle,
       );
-      // Associate it with the local endpoint
-      self
-        .matched_local_endpoint
-        .insert(remote_endpoint_crypto_handle, local_endpoint_crypto_handle);
-      // Insert it to the HashMap corresponding to the local endpoint
-      if let Some(remote_participant_to_remote_endpoint) = self
-        .matched_remote_endpoint
-        .get_mut(&local_endpoint_crypto_handle)
-      {
-        remote_participant_to_remote_endpoint.insert(
+    } else {
+      // Create a new HashMap if one does not yet exist
+      self.matched_remote_endpoint.insert(
+        local_endpoint_crypto_handle,
+        HashMap::from([(
           remote_participant_crypto_handle,
           remote_endpoint_crypto_handle,
-        );
-      } else {
-        // Create a new HashMap if one does not yet exist
-        self.matched_remote_endpoint.insert(
-          local_endpoint_crypto_handle,
-          HashMap::from([(
-            remote_participant_crypto_handle,
-            remote_endpoint_crypto_handle,
-          )]),
-        );
-      }
-      // Return the generated handle
-      remote_endpoint_crypto_handle
+        )]),
+      );
     }
+    remote_endpoint_crypto_handle
   }
 
   fn is_volatile(properties: &[Property]) -> bool {
@@ -439,25 +432,12 @@ impl CryptoKeyFactory for CryptographicBuiltin {
       .get_common_encode_key_materials(&local_datawriter_crypto_handle)
       .cloned()?;
 
-    // Find a handle for the remote datareader corresponding to the (remote
-    // participant, local datawriter) pair, or generate a new one
+    // A handle for this remote datareader
     let remote_datareader_crypto_handle = self
-      .get_or_generate_matched_remote_endpoint_crypto_handle(
+      .generate_matched_remote_endpoint_crypto_handle(
         remote_participant_crypto_handle,
         local_datawriter_crypto_handle,
       );
-
-    // Several readers of one remote participant can match this local endpoint (a
-    // ROS 2 participant has one per subscription or publisher of a topic). They share
-    // the handle of the (remote participant, local endpoint) pair and its key
-    // material, which the first match registered: registering again would fail and
-    // leave the pair without a handle.
-    if self
-      .receiver_specific_encode_key_materials
-      .contains_key(&remote_datareader_crypto_handle)
-    {
-      return Ok(remote_datareader_crypto_handle);
-    }
 
     let receiver_specific_encode_key_materials = match common_encode_key_materials {
       CommonEncodeKeyMaterials::Volatile(use_256_bit_key) => {
@@ -587,25 +567,12 @@ impl CryptoKeyFactory for CryptographicBuiltin {
       .get_common_encode_key_materials(&local_datareader_crypto_handle)
       .cloned()?;
 
-    // Find a handle for the remote datawriter corresponding to the (remote
-    // participant, local datareader) pair, or generate a new one
+    // A handle for this remote datawriter
     let remote_datawriter_crypto_handle: DatareaderCryptoHandle = self
-      .get_or_generate_matched_remote_endpoint_crypto_handle(
+      .generate_matched_remote_endpoint_crypto_handle(
         remote_participant_crypto_handle,
         local_datareader_crypto_handle,
       );
-
-    // Several writers of one remote participant can match this local endpoint (a
-    // ROS 2 participant has one per subscription or publisher of a topic). They share
-    // the handle of the (remote participant, local endpoint) pair and its key
-    // material, which the first match registered: registering again would fail and
-    // leave the pair without a handle.
-    if self
-      .receiver_specific_encode_key_materials
-      .contains_key(&remote_datawriter_crypto_handle)
-    {
-      return Ok(remote_datawriter_crypto_handle);
-    }
 
     let receiver_specific_encode_key_materials = match common_encode_key_materials {
       CommonEncodeKeyMaterials::Volatile(use_256_bit_key) => {

@@ -42,10 +42,8 @@ pub fn governance_xml(domain_id: u16) -> String {
 /// The permissions document granting `enclave` (the certificate's CN) the default policy
 /// in `domain_id`, valid over the certificate's own validity (ISO 8601, UTC).
 pub fn permissions_xml(enclave: &str, domain_id: u16, not_before: &str, not_after: &str) -> String {
-    let rules = ["rq/*Request", "rr/*Reply", "rt/*"]
-        .iter()
-        .map(|t| format!("            <topic>{t}</topic>\n"))
-        .collect::<String>();
+    let ros = allow_rule(domain_id, &["rq/*Request", "rr/*Reply", "rt/*"]);
+    let graph = allow_rule(domain_id, &["ros_discovery_info"]);
     format!(
         r#"<dds xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance" xsi:noNamespaceSchemaLocation="http://www.omg.org/spec/DDS-SECURITY/20170901/omg_shared_ca_permissions.xsd">
   <permissions>
@@ -55,38 +53,28 @@ pub fn permissions_xml(enclave: &str, domain_id: u16, not_before: &str, not_afte
         <not_before>{not_before}</not_before>
         <not_after>{not_after}</not_after>
       </validity>
-      <allow_rule>
-        <domains>
-          <id>{domain_id}</id>
-        </domains>
-        <publish>
-          <topics>
-{rules}          </topics>
-        </publish>
-        <subscribe>
-          <topics>
-{rules}          </topics>
-        </subscribe>
-      </allow_rule>
-      <allow_rule>
-        <domains>
-          <id>{domain_id}</id>
-        </domains>
-        <publish>
-          <topics>
-            <topic>ros_discovery_info</topic>
-          </topics>
-        </publish>
-        <subscribe>
-          <topics>
-            <topic>ros_discovery_info</topic>
-          </topics>
-        </subscribe>
-      </allow_rule>
-      <default>DENY</default>
+{ros}{graph}      <default>DENY</default>
     </grant>
   </permissions>
 </dds>
 "#
+    )
+}
+
+/// One `<allow_rule>` letting the grantee publish and subscribe `topics` in `domain_id`.
+fn allow_rule(domain_id: u16, topics: &[&str]) -> String {
+    let topics: String = topics
+        .iter()
+        .map(|t| format!("            <topic>{t}</topic>\n"))
+        .collect();
+    let access = |kind: &str| {
+        format!(
+            "        <{kind}>\n          <topics>\n{topics}          </topics>\n        </{kind}>\n"
+        )
+    };
+    format!(
+        "      <allow_rule>\n        <domains>\n          <id>{domain_id}</id>\n        </domains>\n{}{}      </allow_rule>\n",
+        access("publish"),
+        access("subscribe")
     )
 }

@@ -20,7 +20,8 @@ use ros2_client::ServiceMapping;
 
 const DOMAIN: u16 = 96;
 
-fn node(name: &str, keystore: Option<&Keystore>, enclave: &str) -> RosNode {
+/// The environment of a node on loopback, secured with `keystore` under Enforce if given.
+fn env(keystore: Option<&Keystore>) -> RosEnv {
     let security = match keystore {
         Some(ks) => SecurityEnv {
             enable: true,
@@ -30,17 +31,20 @@ fn node(name: &str, keystore: Option<&Keystore>, enclave: &str) -> RosNode {
         },
         None => SecurityEnv::default(),
     };
-    let env = RosEnv {
+    RosEnv {
         domain_id: DOMAIN,
         discovery_range: DiscoveryRange::Localhost,
         service_mapping: ServiceMapping::Enhanced,
         security,
-    };
+    }
+}
+
+fn node(name: &str, keystore: Option<&Keystore>, enclave: &str) -> RosNode {
     let args = RosArgs {
         enclave: Some(enclave.to_owned()),
         ..RosArgs::default()
     };
-    RosNode::with_env(env, name, &[], &args).expect("node")
+    RosNode::with_env(env(keystore), name, &[], &args).expect("node")
 }
 
 fn take_all(subscription: &ros2_client::Subscription<RosString>, into: &mut Vec<String>) {
@@ -117,18 +121,8 @@ fn secured_nodes_exchange_every_sample_and_an_unsecured_node_gets_none() {
 fn enforce_refuses_a_node_without_an_enclave() {
     let dir = tempfile::tempdir().unwrap();
     let keystore = Keystore::create(dir.path(), DOMAIN).unwrap();
-    let env = RosEnv {
-        domain_id: DOMAIN,
-        discovery_range: DiscoveryRange::Localhost,
-        service_mapping: ServiceMapping::Enhanced,
-        security: SecurityEnv {
-            enable: true,
-            strategy: Strategy::Enforce,
-            keystore: Some(keystore.root().to_owned()),
-            enclave_override: None,
-        },
-    };
-    let err = match RosNode::with_env(env, "no_enclave", &[], &RosArgs::default()) {
+    let err = match RosNode::with_env(env(Some(&keystore)), "no_enclave", &[], &RosArgs::default())
+    {
         Ok(_) => panic!("a node without an enclave joined under Enforce"),
         Err(err) => err.to_string(),
     };

@@ -6,12 +6,15 @@
   type name (the unsecured control capture holds them, so the capture does see traffic).
 - The secured graph (four participants, one enclave given to `launch --enclave`) records a
   complete bag, equal to `generate` of the same seed.
+- The secured trainer node answers a secured `service call`; the same call without
+  credentials finds no server.
 - Under `ROS_SECURITY_STRATEGY=Enforce` a node without an enclave cannot start;
   `Permissive` runs it unsecured and says so.
 Run inside `tests/netns-run`, as the test command does (raw capture needs the namespace's
 CAP_NET_RAW, which the user namespace gives).
 """
 
+import json
 import os
 import socket
 import subprocess
@@ -199,3 +202,25 @@ def test_enforce_refuses_a_node_without_an_enclave_and_permissive_warns(run_cli,
     typo = {**no_enclave, "ROS_SECURITY_ENABLE": "True"}
     r = run_cli(*args, env=typo, timeout=30)
     assert r.returncode != 0 and "ROS_SECURITY_ENABLE=\"True\"" in r.stderr, r.stderr
+
+
+def test_secured_trainer_service_answers_a_secured_client_only(run_cli, causal_arm_bin, keystore, tmp_path,
+                                                              private_netns):
+    from conftest import bag_and_forward_model, node_process
+
+    bag_and_forward_model(run_cli, tmp_path, ["exp1", "--steps", "600", "--seed", "2"],
+                          ["--epochs", "2", "--folds", "2", "--fm-hidden", "16"])
+    env = {**os.environ, **_secured_env(keystore, enclave=None)}
+    request = '{"state":[0,0.5,0,-1.2,0,0.8,0,0.55,0,0.45],"action":[0.05,0,0,0,0,0,0],"rows":1}'
+    call = ("service", "call", "/trainer/predict_next_state", "--type", "causal_arm_msgs/srv/PredictNextState",
+            "--json", request)
+    trainer = causal_arm_bin.parent / "causal_arm_trainer"
+    with node_process(trainer, ["--enclave", ENCLAVE, "-p", f"model_dir:={tmp_path / 'models'}"], env):
+        r = run_cli(*call, "--ros-args", "--enclave", ENCLAVE, env=_secured_env(keystore, enclave=None),
+                    timeout=90)
+        assert r.returncode == 0, r.stderr[-3000:]
+        reply = json.loads(r.stdout)
+        assert reply["success"] and len(reply["next_state"]) == 10, reply
+        # The same call without credentials finds no server.
+        r = run_cli(*call, "--timeout", "5", env={"ROS_DOMAIN_ID": str(DOMAIN), "RUST_LOG": "warn"}, timeout=60)
+        assert r.returncode != 0, r.stdout

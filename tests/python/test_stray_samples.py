@@ -3,7 +3,9 @@ neither end a run nor enter the bag: CycloneDDS participants flood a running `la
 short, NaN and old-stamped actions and joint states, and with well-formed ones of the very
 step being run (duplicates that would take the real sample's place), one participant
 announcing itself as a ROS 2 node on ros_discovery_info as rmw does, the other not at all.
-A forged /recorder/ack of steps not yet published is refused. The bag must still hold
+A forged /recorder/ack is screened like the data (another node's writer is ignored) and,
+from a writer claiming the recorder's name, refused when it acknowledges steps not yet
+published. The bag must still hold
 every step, identical to the in-process run of the same seed."""
 
 import math
@@ -83,14 +85,21 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
     # keep out).
     plain, impostor, namesake = (DomainParticipant(domain) for _ in range(3))
     plain_w, impostor_w, namesake_w = writers_of(plain), writers_of(impostor), writers_of(namesake)
+
+    def ack_writer(p):
+        return DataWriter(p, Topic(p, "rt/recorder/ack", Clock), qos=ros_default_qos(100))
+
+    # Forged recorder acknowledgements of steps far ahead: taken, they would let the
+    # simulator run away from the recorder. The plain program's wait unannounced, the
+    # impostor's are another node's, the namesake's pass the writer check (it announces
+    # a "causal_arm_recorder") and are refused as acknowledging unpublished steps.
+    forged_acks = [ack_writer(p) for p in (plain, impostor, namesake)]
     announcements = [
-        announce(impostor, {"impostor": impostor_w}),
-        announce(namesake, {"causal_arm_babbler": namesake_w[:1], "causal_arm_sim": namesake_w[1:]}),
+        announce(impostor, {"impostor": [*impostor_w, forged_acks[1]]}),
+        announce(namesake, {"causal_arm_babbler": namesake_w[:1], "causal_arm_sim": namesake_w[1:],
+                            "causal_arm_recorder": [forged_acks[2]]}),
     ]
     state_reader = DataReader(plain, Topic(plain, "rt/joint_states", JointState), qos=ros_default_qos(100))
-    # Forged recorder acknowledgements of steps far ahead: taken, they would let the
-    # simulator run away from the recorder.
-    forged_acks = DataWriter(plain, Topic(plain, "rt/recorder/ack", Clock), qos=ros_default_qos(100))
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain), "RUST_LOG": "warn,causal_arm_graph=info"}
     dds = tmp_path / "dds"
     proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", str(steps), "--seed", "4",
@@ -114,7 +123,8 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
                 for s in states:
                     state_writer.write(s)
                 sent += len(actions) + len(states)
-        forged_acks.write(Clock(clock=stamp_of(k + 10_000)))
+        for forged in forged_acks:
+            forged.write(Clock(clock=stamp_of(k + 10_000)))
         if proc.poll() is not None:
             break
         time.sleep(0.002)
@@ -126,6 +136,8 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
     # The namesake's samples pass the writer check and are refused as malformed or stale.
     assert "ignoring an action" in stderr and "malformed" in stderr, stderr[-3000:]
     assert "ignoring an acknowledgement of step" in stderr, stderr[-3000:]
+    foreign_acks = re.search(r"(\d+) acknowledgements of other nodes' writers", stderr)
+    assert foreign_acks and int(foreign_acks[1]) > 0, stderr[-3000:]
     # The impostor's are refused by writer, in all three nodes, and the plain program's
     # wait unannounced (then are dropped as the quarantine fills).
     summaries = [line for line in stderr.splitlines() if "of other nodes' writers" in line]

@@ -4,6 +4,7 @@
 //! recorder) and each command is the babbler node's answer to that very state.
 
 use std::collections::VecDeque;
+use std::rc::Rc;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -50,7 +51,7 @@ struct DdsStatePublisher {
     tf: Publisher<TFMessage>,
     description: Publisher<RosString>,
     /// `Some` when the recorder paces the run.
-    acks: Option<(Subscription<Clock>, AckWindow)>,
+    acks: Option<AckFeed>,
     stop: Arc<AtomicBool>,
     last_stamp: u64,
 }
@@ -93,13 +94,20 @@ impl DdsStatePublisher {
         Ok(true)
     }
 
-    fn new(node: &mut RosNode, paced_by: Option<AckWindow>) -> anyhow::Result<Self> {
+    fn new(
+        node: &mut RosNode,
+        paced_by: Option<AckWindow>,
+        screen: &Rc<Screen>,
+    ) -> anyhow::Result<Self> {
         let recorded = qos::recorded();
         let acks = match paced_by {
-            Some(window) => Some((
-                node.subscription::<Clock>(ACK_TOPIC, qos::default_reliable())?,
+            Some(window) => Some(AckFeed {
+                acks: node.subscription::<Clock>(ACK_TOPIC, qos::default_reliable())?,
                 window,
-            )),
+                trusted: screen.trusted(ACK_TOPIC)?,
+                screen: Rc::clone(screen),
+                quarantine: Quarantine::default(),
+            }),
             None => None,
         };
         Ok(Self {
@@ -118,15 +126,8 @@ impl DdsStatePublisher {
     }
 
     fn take_acks(&mut self) {
-        if let Some((acks, window)) = &mut self.acks {
-            while let Ok(Some((ack, _))) = acks.take() {
-                let stamp = ns_from_time(&ack.clock);
-                if !window.ack(stamp) && window.refused() <= LOGGED {
-                    tracing::warn!(
-                        "ignoring an acknowledgement of step {stamp} ns, not yet published"
-                    );
-                }
-            }
+        if let Some(feed) = &mut self.acks {
+            feed.take();
         }
     }
 
@@ -135,7 +136,7 @@ impl DdsStatePublisher {
         loop {
             self.take_acks();
             match &self.acks {
-                Some((_, window)) if !window.allows(stamp) => {}
+                Some(feed) if !feed.window.allows(stamp) => {}
                 _ => return Ok(()),
             }
             if self.stop.load(Ordering::SeqCst) {
@@ -151,13 +152,46 @@ impl DdsStatePublisher {
         loop {
             self.take_acks();
             let done = match &self.acks {
-                Some((_, window)) => window.acked() == Some(self.last_stamp),
+                Some(feed) => feed.window.acked() == Some(self.last_stamp),
                 None => true,
             };
             if done || self.stop.load(Ordering::SeqCst) || start.elapsed() > timeout {
                 return;
             }
             std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+}
+
+/// The recorder's acknowledgements, taken only from the recorder's writers (screened as
+/// actions are: a forged acknowledgement would let the simulator run ahead of the bag).
+struct AckFeed {
+    acks: Subscription<Clock>,
+    window: AckWindow,
+    screen: Rc<Screen>,
+    trusted: Trusted,
+    quarantine: Quarantine<u64>,
+}
+
+impl AckFeed {
+    /// Feeds the window every acknowledgement the screen admits.
+    fn take(&mut self) {
+        self.screen.refresh();
+        let directory = self.screen.directory();
+        let mut stamps = self.quarantine.release(&self.trusted, &directory);
+        while let Ok(Some((ack, info))) = self.acks.take() {
+            let writer = info.publisher_gid().to_bytes16();
+            let stamp = ns_from_time(&ack.clock);
+            stamps.extend(
+                self.quarantine
+                    .admit(&self.trusted, &directory, writer, stamp),
+            );
+        }
+        drop(directory);
+        for stamp in stamps {
+            if !self.window.ack(stamp) && self.window.refused() <= LOGGED {
+                tracing::warn!("ignoring an acknowledgement of step {stamp} ns, not yet published");
+            }
         }
     }
 }
@@ -176,8 +210,8 @@ impl StepSink for DdsStatePublisher {
         publish(&self.magnet, m.magnet, topics::MAGNET_STATE)?;
         publish(&self.clock, m.clock, topics::CLOCK)?;
         publish(&self.tf, m.tf, topics::TF)?;
-        if let Some((_, window)) = &mut self.acks {
-            window.published(stamp_ns);
+        if let Some(feed) = &mut self.acks {
+            feed.window.published(stamp_ns);
         }
         self.last_stamp = stamp_ns;
         Ok(())
@@ -197,7 +231,7 @@ struct DdsCommands {
     timeout: Duration,
     stop: Arc<AtomicBool>,
     ignored: u64,
-    screen: Screen,
+    screen: Rc<Screen>,
     trusted: Trusted,
     quarantine: Quarantine<Action>,
     /// Actions admitted by the screen, not looked at yet.
@@ -205,8 +239,12 @@ struct DdsCommands {
 }
 
 impl DdsCommands {
-    fn new(node: &mut RosNode, timeout: Duration, stop: Arc<AtomicBool>) -> anyhow::Result<Self> {
-        let screen = Screen::new(node)?;
+    fn new(
+        node: &mut RosNode,
+        screen: Rc<Screen>,
+        timeout: Duration,
+        stop: Arc<AtomicBool>,
+    ) -> anyhow::Result<Self> {
         Ok(Self {
             actions: node.subscription::<Action>(topics::ACTION, qos::recorded())?,
             timeout,
@@ -321,8 +359,9 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         }
         window
     });
-    let mut states = DdsStatePublisher::new(&mut node, pacing)?;
-    let mut commands = DdsCommands::new(&mut node, timeout, stop.clone())?;
+    let screen = Rc::new(Screen::new(&mut node)?);
+    let mut states = DdsStatePublisher::new(&mut node, pacing, &screen)?;
+    let mut commands = DdsCommands::new(&mut node, Rc::clone(&screen), timeout, stop.clone())?;
     let (mut sim, _) = fast_forward(&run.options, start)?;
     states.robot_description(&RosString {
         data: EMBEDDED_IIWA_URDF.to_owned(),
@@ -357,12 +396,19 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     }
     states.wait_until_recorded(timeout);
     let screened = commands.quarantine.counts();
+    let acks = states
+        .acks
+        .as_ref()
+        .map(|feed| feed.quarantine.counts())
+        .unwrap_or_default();
     tracing::info!(
-        "simulator done at sim time {:.3} s; ignored {} actions of other nodes' writers, {} of unannounced writers and {} stray or malformed actions",
+        "simulator done at sim time {:.3} s; ignored {} actions of other nodes' writers, {} of unannounced writers and {} stray or malformed actions; {} acknowledgements of other nodes' writers and {} of unannounced writers",
         states.last_stamp as f64 * 1e-9,
         screened.foreign,
         screened.unidentified,
-        commands.ignored
+        commands.ignored,
+        acks.foreign,
+        acks.unidentified
     );
     Ok(())
 }

@@ -255,12 +255,13 @@ impl SecurityPlugins {
     self
       .remote_endpoint_crypto_handle_cache
       .get(&local_and_proxy_guid_pair)
+      // Not logged here: tokens that arrive before the endpoint is registered are stored
+      // and retried, and every caller logs the error in its own context.
       .ok_or_else(|| {
-        create_security_error_and_log!(
+        security_error(&format!(
           "Could not find a remote EndpointCryptoHandle for the (local_endpoint_guid, proxy_guid) \
-           pair {:?}",
-          local_and_proxy_guid_pair
-        )
+           pair {local_and_proxy_guid_pair:?}"
+        ))
       })
       .copied()
   }

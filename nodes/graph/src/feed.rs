@@ -10,13 +10,11 @@ use std::rc::Rc;
 use std::time::Duration;
 
 use causal_arm_msgs::builtin_interfaces::msg::Time;
-use causal_arm_protocol::{
-    Quarantine, QuarantineCounts, StepJoiner, StepParts, Trusted, WellFormed, ns_from_time,
-};
+use causal_arm_protocol::{QuarantineCounts, StepJoiner, StepParts, WellFormed, ns_from_time};
 use ros2_client::{MessageInfo, Subscription};
 use serde::de::DeserializeOwned;
 
-use crate::screen::Screen;
+use crate::screen::{Gate, Screen};
 use crate::take_next;
 
 /// Stray samples of one kind logged in full before the rest are only counted (the
@@ -46,8 +44,7 @@ pub struct TopicFeed<M, P> {
     put: fn(&mut P, M) -> bool,
     unreadable: Cell<u64>,
     screen: Rc<Screen>,
-    trusted: Trusted,
-    quarantine: RefCell<Quarantine<M>>,
+    gate: RefCell<Gate<M>>,
 }
 
 impl<M, P> TopicFeed<M, P> {
@@ -60,16 +57,14 @@ impl<M, P> TopicFeed<M, P> {
         put: fn(&mut P, M) -> bool,
         screen: Rc<Screen>,
     ) -> anyhow::Result<Self> {
-        let trusted = screen.trusted(topic)?;
         Ok(Self {
             topic,
             subscription,
             stamp,
             put,
             unreadable: Cell::new(0),
+            gate: RefCell::new(Gate::new(topic, Rc::clone(&screen))?),
             screen,
-            trusted,
-            quarantine: RefCell::new(Quarantine::default()),
         })
     }
 }
@@ -79,14 +74,7 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> TopicFeed<M, P> {
     /// and drops it (counted) if another node owns the writer.
     fn screen_and_file(&self, joiner: &mut StepJoiner<P>, message: M, info: &MessageInfo) {
         let writer = info.publisher_gid().to_bytes16();
-        let before = self.quarantine.borrow().counts();
-        let admitted = self.quarantine.borrow_mut().admit(
-            &self.trusted,
-            &self.screen.directory(),
-            writer,
-            message,
-        );
-        self.log_screened(before);
+        let admitted = self.gate.borrow_mut().admit(writer, message);
         for message in admitted {
             self.file(joiner, message);
         }
@@ -94,34 +82,9 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> TopicFeed<M, P> {
 
     /// Files the held samples whose writers were announced since, as trusted.
     fn release_held(&self, joiner: &mut StepJoiner<P>) {
-        if self.quarantine.borrow().held() == 0 {
-            return;
-        }
-        let before = self.quarantine.borrow().counts();
-        let released = self
-            .quarantine
-            .borrow_mut()
-            .release(&self.trusted, &self.screen.directory());
-        self.log_screened(before);
+        let released = self.gate.borrow_mut().release();
         for message in released {
             self.file(joiner, message);
-        }
-    }
-
-    fn log_screened(&self, before: QuarantineCounts) {
-        let now = self.quarantine.borrow().counts();
-        if now.foreign > before.foreign && now.foreign <= LOGGED {
-            tracing::warn!(
-                "ignoring a {} sample from a writer of another node than {:?}",
-                self.topic,
-                self.trusted
-            );
-        }
-        if now.unidentified > before.unidentified && now.unidentified <= LOGGED {
-            tracing::warn!(
-                "dropping a {} sample of a writer no ROS 2 participant announced (quarantine full)",
-                self.topic
-            );
         }
     }
 
@@ -184,7 +147,7 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> Feed<P> for Topic
     }
 
     fn screened(&self) -> QuarantineCounts {
-        self.quarantine.borrow().counts()
+        self.gate.borrow().counts()
     }
 }
 

@@ -5,11 +5,12 @@
 //! the `trusted_publishers` parameter names others (`*`: any writer).
 
 use std::cell::RefCell;
+use std::rc::Rc;
 
 use causal_arm_msgs::rmw_dds_common::msg::ParticipantEntitiesInfo;
 use causal_arm_node::RosNode;
 use causal_arm_protocol::graph::graph;
-use causal_arm_protocol::{Trusted, WriterDirectory};
+use causal_arm_protocol::{Gid, Quarantine, QuarantineCounts, Trusted, WriterDirectory};
 use ros2_client::Subscription;
 
 use crate::feed::LOGGED;
@@ -74,5 +75,78 @@ impl Screen {
     /// The directory as of the last [`Screen::refresh`].
     pub fn directory(&self) -> std::cell::Ref<'_, WriterDirectory> {
         self.directory.borrow()
+    }
+}
+
+/// One topic's samples let through only from its trusted writers: samples of another
+/// node's writer are dropped (counted), those of a writer not yet announced are held until
+/// [`Screen`] learns whose it is. Every subscription of the graph's data goes through one.
+pub struct Gate<T> {
+    topic: &'static str,
+    screen: Rc<Screen>,
+    trusted: Trusted,
+    quarantine: Quarantine<T>,
+}
+
+impl<T> Gate<T> {
+    /// A gate for `topic`, trusting the nodes `screen` names for it.
+    pub fn new(topic: &'static str, screen: Rc<Screen>) -> anyhow::Result<Self> {
+        Ok(Self {
+            topic,
+            trusted: screen.trusted(topic)?,
+            screen,
+            quarantine: Quarantine::default(),
+        })
+    }
+
+    /// `sample` of `writer`: what may pass now (it, after any held samples of the same
+    /// writer), or nothing while the writer is unknown or another node's.
+    pub fn admit(&mut self, writer: Gid, sample: T) -> Vec<T> {
+        let before = self.quarantine.counts();
+        let passed = self
+            .quarantine
+            .admit(&self.trusted, &self.screen.directory(), writer, sample);
+        self.log_screened(before);
+        passed
+    }
+
+    /// The held samples whose writers were announced since, as trusted.
+    pub fn release(&mut self) -> Vec<T> {
+        if self.quarantine.held() == 0 {
+            return Vec::new();
+        }
+        let before = self.quarantine.counts();
+        let released = self
+            .quarantine
+            .release(&self.trusted, &self.screen.directory());
+        self.log_screened(before);
+        released
+    }
+
+    /// Samples held for writers not yet announced.
+    pub fn held(&self) -> usize {
+        self.quarantine.held()
+    }
+
+    /// Samples kept out so far.
+    pub fn counts(&self) -> QuarantineCounts {
+        self.quarantine.counts()
+    }
+
+    fn log_screened(&self, before: QuarantineCounts) {
+        let now = self.quarantine.counts();
+        if now.foreign > before.foreign && now.foreign <= LOGGED {
+            tracing::warn!(
+                "ignoring a {} sample from a writer of another node than {:?}",
+                self.topic,
+                self.trusted
+            );
+        }
+        if now.unidentified > before.unidentified && now.unidentified <= LOGGED {
+            tracing::warn!(
+                "dropping a {} sample of a writer no ROS 2 participant announced (quarantine full)",
+                self.topic
+            );
+        }
     }
 }

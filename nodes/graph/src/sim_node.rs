@@ -21,14 +21,12 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{RosArgs, RosNode, qos};
-use causal_arm_protocol::{
-    Command, Quarantine, SimState, StepMessages, Trusted, command_of, ns_from_time, topics,
-};
+use causal_arm_protocol::{Command, SimState, StepMessages, command_of, ns_from_time, topics};
 use ros2_client::{Publisher, Subscription};
 
 use crate::feed::LOGGED;
 use crate::flow::AckWindow;
-use crate::screen::Screen;
+use crate::screen::{Gate, Screen};
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag, take_next};
 
 fn publish<M: causal_arm_msgs::RosMessage>(
@@ -104,9 +102,8 @@ impl DdsStatePublisher {
             Some(window) => Some(AckFeed {
                 acks: node.subscription::<Clock>(ACK_TOPIC, qos::default_reliable())?,
                 window,
-                trusted: screen.trusted(ACK_TOPIC)?,
+                gate: Gate::new(ACK_TOPIC, Rc::clone(screen))?,
                 screen: Rc::clone(screen),
-                quarantine: Quarantine::default(),
             }),
             None => None,
         };
@@ -169,25 +166,23 @@ struct AckFeed {
     acks: Subscription<Clock>,
     window: AckWindow,
     screen: Rc<Screen>,
-    trusted: Trusted,
-    quarantine: Quarantine<u64>,
+    gate: Gate<u64>,
 }
 
 impl AckFeed {
-    /// Feeds the window every acknowledgement the screen admits.
+    /// Feeds the window every acknowledgement the screen admits. Called in the window's
+    /// wait loop: reads the graph's announcements only when there is something to screen.
     fn take(&mut self) {
-        self.screen.refresh();
-        let directory = self.screen.directory();
-        let mut stamps = self.quarantine.release(&self.trusted, &directory);
-        while let Ok(Some((ack, info))) = self.acks.take() {
-            let writer = info.publisher_gid().to_bytes16();
-            let stamp = ns_from_time(&ack.clock);
-            stamps.extend(
-                self.quarantine
-                    .admit(&self.trusted, &directory, writer, stamp),
-            );
+        let arrived: Vec<_> = std::iter::from_fn(|| self.acks.take().ok().flatten()).collect();
+        if arrived.is_empty() && self.gate.held() == 0 {
+            return;
         }
-        drop(directory);
+        self.screen.refresh();
+        let mut stamps = self.gate.release();
+        for (ack, info) in arrived {
+            let writer = info.publisher_gid().to_bytes16();
+            stamps.extend(self.gate.admit(writer, ns_from_time(&ack.clock)));
+        }
         for stamp in stamps {
             if !self.window.ack(stamp) && self.window.refused() <= LOGGED {
                 tracing::warn!("ignoring an acknowledgement of step {stamp} ns, not yet published");
@@ -232,8 +227,7 @@ struct DdsCommands {
     stop: Arc<AtomicBool>,
     ignored: u64,
     screen: Rc<Screen>,
-    trusted: Trusted,
-    quarantine: Quarantine<Action>,
+    gate: Gate<Action>,
     /// Actions admitted by the screen, not looked at yet.
     admitted: VecDeque<Action>,
 }
@@ -250,9 +244,8 @@ impl DdsCommands {
             timeout,
             stop,
             ignored: 0,
-            trusted: screen.trusted(topics::ACTION)?,
+            gate: Gate::new(topics::ACTION, Rc::clone(&screen))?,
             screen,
-            quarantine: Quarantine::default(),
             admitted: VecDeque::new(),
         })
     }
@@ -269,30 +262,15 @@ impl DdsCommands {
     fn receive(&mut self) {
         let taken = take_next(&self.actions, Duration::from_millis(100));
         self.screen.refresh();
-        let directory = self.screen.directory();
-        let released = self.quarantine.release(&self.trusted, &directory);
+        let released = self.gate.release();
         self.admitted.extend(released);
         match taken {
             Some(Ok((action, info))) => {
                 let writer = info.publisher_gid().to_bytes16();
-                let foreign = self.quarantine.counts().foreign;
-                let admitted = self
-                    .quarantine
-                    .admit(&self.trusted, &directory, writer, action);
-                drop(directory);
+                let admitted = self.gate.admit(writer, action);
                 self.admitted.extend(admitted);
-                let now = self.quarantine.counts().foreign;
-                if now > foreign && now <= LOGGED {
-                    tracing::warn!(
-                        "ignoring an action from a writer of another node than {:?}",
-                        self.trusted
-                    );
-                }
             }
-            Some(Err(e)) => {
-                drop(directory);
-                self.skip(format_args!("undecodable: {e:#}"));
-            }
+            Some(Err(e)) => self.skip(format_args!("undecodable: {e:#}")),
             None => {}
         }
     }
@@ -395,11 +373,11 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         Err(e) => return Err(e.into()),
     }
     states.wait_until_recorded(timeout);
-    let screened = commands.quarantine.counts();
+    let screened = commands.gate.counts();
     let acks = states
         .acks
         .as_ref()
-        .map(|feed| feed.quarantine.counts())
+        .map(|feed| feed.gate.counts())
         .unwrap_or_default();
     tracing::info!(
         "simulator done at sim time {:.3} s; ignored {} actions of other nodes' writers, {} of unannounced writers and {} stray or malformed actions; {} acknowledgements of other nodes' writers and {} of unannounced writers",

@@ -284,21 +284,34 @@ def test_explain_service_attributions_are_efficient_against_numpy(exp2, client):
         assert np.all(np.abs(phi[:, 6:9, 23:]) < 1e-9)
 
 
-def deep_rows(exp2, client, n, timeout):
-    """Deep SHAP of n rows from CycloneDDS, checked for efficiency against NumPy; returns
-    the attributions and the request."""
+def deep_request(exp2, n):
+    """A Deep SHAP request of n observed rows; returns the rows and the request."""
     d, _ = exp2
     t = load_safetensors(d / "deep" / "shap_values.safetensors")
     rows = np.resize(t["observations"], (n, 31))
     state, action = rows[:, :23].ravel().tolist(), rows[:, 23:].ravel().tolist()
-    reply = client.call(idl.ExplainRequest(method="deep", state=state, action=action, rows=n), timeout=timeout)
+    return rows, idl.ExplainRequest(method="deep", state=state, action=action, rows=n)
+
+
+def check_deep_reply(exp2, rows, reply):
+    """The reply's attributions, checked for efficiency against NumPy on 50 rows."""
+    d, _ = exp2
+    n = len(rows)
     assert reply.success, reply.message
     phi = np.array(reply.attributions).reshape(n, 23, 31)
     f = numpy_predict(d / "models", "fm", rows[:50])
     sums = phi[:50].sum(axis=2)
     gap = (sums - sums[0]) - (f - f[0])
     assert np.all(np.abs(gap) <= 1e-5 * (np.abs(f).max(axis=0) + 1e-9))
-    return phi, {"method": "deep", "state": state, "action": action, "rows": n, "background": 0}
+    return phi
+
+
+def deep_rows(exp2, client, n, timeout):
+    """Deep SHAP of n rows from CycloneDDS, checked for efficiency against NumPy; returns
+    the attributions and the request."""
+    rows, request = deep_request(exp2, n)
+    phi = check_deep_reply(exp2, rows, client.call(request, timeout=timeout))
+    return phi, {"method": "deep", "state": request.state, "action": request.action, "rows": n, "background": 0}
 
 
 def test_multi_fragment_explanations_reach_cyclonedds_and_our_own_client(exp2, client, run_cli, tmp_path):
@@ -334,6 +347,25 @@ def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply(exp2, causal_arm
                                   idl.ExplainReply)
         assert fresh.wait_for_server(timeout=120)
         deep_rows(exp2, fresh, 1000, 30)
+
+
+def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply_to_fastdds(exp2, causal_arm_bin, private_netns):
+    """rmw_fastrtps's mapping, a Fast DDS client (tests/fastdds): three concurrent requests,
+    1000 rows (the advertised limit, 5.7 MB) first, each answered with its own reply."""
+    import fastdds
+
+    peer = fastdds.build()
+    d, _ = exp2
+    domain = DOMAIN + 2
+    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_fastrtps_cpp", ROS_DOMAIN_ID=str(domain))
+    params = ["-p", f"model_dir:={d / 'models'}", "-p", f"bag:={d / 'bag'}", "-p", f"cache:={d / 'cache'}",
+              "-p", f"samples:={NODE_SAMPLES}"]
+    made = [deep_request(exp2, n) for n in (1000, 3, 100)]
+    with node_process(causal_arm_bin.parent / "causal_arm_explainer", params, env):
+        replies = fastdds.call(peer, domain, "/explainer/explain", idl.ExplainRequest, idl.ExplainReply,
+                               [request for _, request in made], timeout=120)
+    for (rows, _), reply in zip(made, replies):
+        check_deep_reply(exp2, rows, reply)
 
 
 def test_the_advertised_deep_limit_reaches_a_client_after_a_smaller_reply(exp2, participant, explainer_node):

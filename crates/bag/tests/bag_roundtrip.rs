@@ -54,7 +54,7 @@ fn write_bag(dir: &std::path::Path, n: u64, chunk: u64) -> causal_arm_bag::BagSu
 #[test]
 fn written_messages_read_back_identically() {
     let tmp = tempdir();
-    let dir = tmp.join("run1");
+    let dir = tmp.path().join("run1");
     let summary = write_bag(&dir, 500, 4096);
     assert_eq!(summary.message_count, 1500);
     assert!(dir.join("run1_0.mcap").exists() && dir.join("metadata.yaml").exists());
@@ -90,7 +90,7 @@ fn written_messages_read_back_identically() {
 #[test]
 fn wrong_type_decode_is_named() {
     let tmp = tempdir();
-    let dir = tmp.join("b");
+    let dir = tmp.path().join("b");
     write_bag(&dir, 3, 4096);
     let r = BagReader::open(&dir).unwrap();
     let raw = r.messages().next().unwrap().unwrap();
@@ -104,7 +104,7 @@ fn wrong_type_decode_is_named() {
 #[test]
 fn existing_bag_is_refused_without_overwrite() {
     let tmp = tempdir();
-    let dir = tmp.join("b");
+    let dir = tmp.path().join("b");
     write_bag(&dir, 3, 4096);
     let err = BagWriter::create(&dir, BagOptions::default())
         .err()
@@ -126,7 +126,7 @@ fn existing_bag_is_refused_without_overwrite() {
 #[test]
 fn unwritable_directory_is_named() {
     let tmp = tempdir();
-    let file = tmp.join("plain");
+    let file = tmp.path().join("plain");
     std::fs::write(&file, "x").unwrap();
     let err = BagWriter::create(&file.join("bag"), BagOptions::default())
         .err()
@@ -141,7 +141,7 @@ fn unwritable_directory_is_named() {
 #[test]
 fn dropped_writer_leaves_a_finished_bag() {
     let tmp = tempdir();
-    let dir = tmp.join("dropped");
+    let dir = tmp.path().join("dropped");
     {
         let mut w = BagWriter::create(&dir, BagOptions::default()).unwrap();
         w.add_topic::<JointState>("/joint_states", "").unwrap();
@@ -155,7 +155,7 @@ fn dropped_writer_leaves_a_finished_bag() {
 #[test]
 fn truncated_files_yield_a_prefix() {
     let tmp = tempdir();
-    let dir = tmp.join("full");
+    let dir = tmp.path().join("full");
     write_bag(&dir, 2000, 8192);
     let bytes = std::fs::read(dir.join("full_0.mcap")).unwrap();
     let mut last = 0;
@@ -166,7 +166,7 @@ fn truncated_files_yield_a_prefix() {
         bytes.len() * 9 / 10,
         bytes.len() - 10,
     ] {
-        let file = tmp.join(format!("cut_{cut}.mcap"));
+        let file = tmp.path().join(format!("cut_{cut}.mcap"));
         std::fs::write(&file, &bytes[..cut]).unwrap();
         let r = BagReader::open(&file).unwrap();
         assert!(r.truncation().is_some(), "cut at {cut} should be reported");
@@ -193,15 +193,10 @@ fn truncated_files_yield_a_prefix() {
     );
 }
 
-fn tempdir() -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "causal-arm-bag-test-{}-{}",
-        std::process::id(),
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_nanos()
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A scratch directory removed when the test ends (pass or fail).
+fn tempdir() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("causal-arm-bag-test-")
+        .tempdir()
+        .unwrap()
 }

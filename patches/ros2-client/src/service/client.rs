@@ -72,6 +72,33 @@ where
     })
   }
 
+  /// The related sample identity of an Enhanced-mapping request, as rmw_fastrtps clients
+  /// send it since Galactic: the GUID of the reply reader and an unknown sequence number.
+  /// A server can then wait until that reader is matched before it replies, instead of
+  /// losing the first reply to a discovery race.
+  fn reply_reader_identity(&self) -> SampleIdentity {
+    SampleIdentity {
+      writer_guid: self.response_receiver.guid(),
+      sequence_number: SequenceNumber::UNKNOWN,
+    }
+  }
+
+  /// A server answering a request that named the reply reader (see
+  /// `reply_reader_identity`) relates its reply to that reader's GUID; the caller holds
+  /// the request writer's id, so map it back (rmw_fastrtps accepts both GUIDs likewise).
+  fn as_sent_request_id(&self, id: RmwRequestId) -> RmwRequestId {
+    if self.service_mapping == ServiceMapping::Enhanced
+      && id.writer_gid == Gid::from(self.response_receiver.guid())
+    {
+      RmwRequestId {
+        writer_gid: Gid::from(self.client_guid),
+        ..id
+      }
+    } else {
+      id
+    }
+  }
+
   /// Send a request to Service Server.
   /// The returned `RmwRequestId` is a token to identify the correct response.
   pub fn send_request(&self, request: Req) -> WriteResult<RmwRequestId, ()> {
@@ -89,7 +116,7 @@ where
     let write_opts_builder = WriteOptionsBuilder::new().source_timestamp(Timestamp::now()); // always add source timestamp
 
     let write_opts_builder = if self.service_mapping == ServiceMapping::Enhanced {
-      write_opts_builder
+      write_opts_builder.related_sample_identity(self.reply_reader_identity())
     } else {
       write_opts_builder.related_sample_identity(SampleIdentity::from(gen_rmw_req_id))
     };
@@ -122,7 +149,7 @@ where
         let mi = MessageInfo::from(&dcc);
         let res_wrapper = dcc.into_value();
         let (ri, res) = res_wrapper.unwrap(self.service_mapping, mi, self.client_guid)?;
-        Ok(Some((ri, res)))
+        Ok(Some((self.as_sent_request_id(ri), res)))
       }
     } // match
   }
@@ -150,7 +177,7 @@ where
     let write_opts_builder = WriteOptionsBuilder::new().source_timestamp(Timestamp::now()); // always add source timestamp
 
     let write_opts_builder = if self.service_mapping == ServiceMapping::Enhanced {
-      write_opts_builder
+      write_opts_builder.related_sample_identity(self.reply_reader_identity())
     } else {
       write_opts_builder.related_sample_identity(SampleIdentity::from(gen_rmw_req_id))
     };
@@ -189,6 +216,7 @@ where
             dcc
               .into_value()
               .unwrap(self.service_mapping, mi, self.client_guid)?;
+          let req_id = self.as_sent_request_id(req_id);
           if req_id == request_id {
             return Ok(response);
           } else {

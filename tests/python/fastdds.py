@@ -1,0 +1,73 @@
+"""The Fast DDS peer (tests/fastdds/fastdds_peer.cpp): built once per test session from
+Debian's libfastrtps-dev, then run as a subprocess that speaks as rmw_fastrtps does.
+
+Samples cross its command line as hex of the serialized bytes; this module turns them into
+the CycloneDDS Python IDL classes of ros_idl, an independent CDR implementation.
+
+rmw_fastrtps's service payloads carry no header (the request id travels as the related
+sample identity), while ros_idl's request and reply classes start with rmw_cyclonedds's
+16-octet header (client GUID, sequence number). That header is 8-aligned and first, so the
+Fast DDS payload is the CycloneDDS one without octets 4..20, and adding 16 zero octets there
+decodes a Fast DDS payload with the same class.
+"""
+
+import hashlib
+import os
+import pathlib
+import shutil
+import subprocess
+
+import pytest
+
+REPO_ROOT = pathlib.Path(__file__).resolve().parents[2]
+SOURCE = REPO_ROOT / "tests" / "fastdds" / "fastdds_peer.cpp"
+HEADER = slice(4, 20)
+
+
+def build() -> pathlib.Path:
+    """Compiles the peer into the target dir (cached by the source's hash); fails the test
+    with the compiler's message when libfastrtps-dev or a C++ compiler is missing."""
+    target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", REPO_ROOT / "target")) / "fastdds"
+    digest = hashlib.sha256(SOURCE.read_bytes()).hexdigest()[:16]
+    binary = target / f"fastdds_peer-{digest}"
+    if binary.exists():
+        return binary
+    if shutil.which("g++") is None:
+        pytest.fail("g++ is needed to build the Fast DDS peer (apt install build-essential)")
+    target.mkdir(parents=True, exist_ok=True)
+    r = subprocess.run(["g++", "-std=c++17", "-O1", "-Wall", "-Wextra", "-o", str(binary), str(SOURCE),
+                        "-lfastrtps", "-lfastcdr"], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.fail("building the Fast DDS peer failed (is libfastrtps-dev installed?):\n" + r.stderr[-3000:])
+    return binary
+
+
+def enhanced_payload(request) -> bytes:
+    """The rmw_fastrtps payload of a ros_idl request or reply (its rmw_cyclonedds header cut)."""
+    data = request.serialize()
+    return data[:HEADER.start] + data[HEADER.stop:]
+
+
+def from_enhanced(cls, payload: bytes):
+    """Decodes an rmw_fastrtps service payload with a ros_idl class that has the header."""
+    return cls.deserialize(payload[:HEADER.start] + bytes(HEADER.stop - HEADER.start) + payload[HEADER.start:])
+
+
+def env(domain: int) -> dict:
+    return dict(os.environ, ROS_DOMAIN_ID=str(domain))
+
+
+def call(peer, domain, service, request_cls, reply_cls, requests, timeout=60.0):
+    """Sends all requests at once from a Fast DDS client, as rmw_fastrtps does; returns the
+    decoded replies in request order (the peer matched each by related sample identity)."""
+    lines = "".join(enhanced_payload(r).hex() + "\n" for r in requests)
+    r = subprocess.run([str(peer), "call", service, request_cls.__idl_typename__, reply_cls.__idl_typename__,
+                        str(timeout)], input=lines, capture_output=True, text=True, env=env(domain),
+                       timeout=timeout + 30)
+    assert r.returncode == 0, f"fastdds_peer call {service}: {r.stderr[-2000:]}"
+    replies = {}
+    for line in r.stdout.splitlines():
+        index, payload = line.split(" ")
+        replies[int(index)] = from_enhanced(reply_cls, bytes.fromhex(payload))
+    assert sorted(replies) == list(range(len(requests))), r.stdout[:200]
+    return [replies[i] for i in range(len(requests))]

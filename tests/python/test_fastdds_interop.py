@@ -1,0 +1,174 @@
+"""Fast DDS, the default ROS 2 middleware, as a peer of the graph (tests/fastdds/fastdds_peer.cpp
+on Debian's libfastrtps, speaking as rmw_fastrtps does): topics both ways, and services both
+ways with rmw_fastrtps's request/reply correlation. Messages are encoded and decoded on this
+side by CycloneDDS Python's CDR (ros_idl), so neither end checks itself.
+
+Runs only inside tests/netns-run (loopback only)."""
+
+import json
+import os
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+import fastdds
+import ros_idl as idl
+from conftest import node_process
+from model_numpy import numpy_predict
+from test_dds_interop import JOINT_NAMES, _as_dict, _assert_joint_state_equal, _sample_json
+
+DOMAIN = 61
+JOINT_STATE = "sensor_msgs::msg::dds_::JointState_"
+
+
+@pytest.fixture(scope="module")
+def peer():
+    return fastdds.build()
+
+
+def _bag_joint_states(bag):
+    from mcap.reader import make_reader
+
+    (path,) = bag.glob("*.mcap")
+    with open(path, "rb") as f:
+        return [idl.JointState.deserialize(m.data)
+                for _, c, m in make_reader(f).iter_messages() if c.topic == "/joint_states"]
+
+
+def test_fastdds_receives_joint_states_from_a_running_graph(peer, run_cli, tmp_path, private_netns):
+    # To a file, not a pipe: a full pipe would stall the peer while the graph runs.
+    with open(tmp_path / "sub.out", "w") as out, open(tmp_path / "sub.err", "w") as err:
+        sub = subprocess.Popen([str(peer), "sub", "rt/joint_states", JOINT_STATE, "3000", "180"],
+                               env=fastdds.env(DOMAIN), stdout=out, stderr=err)
+    try:
+        time.sleep(1.0)  # the Fast DDS participant is up before the graph starts
+        r = run_cli("launch", "exp1", "--steps", "3000", "--seed", "2", "--out", tmp_path / "bag",
+                    env={"ROS_DOMAIN_ID": str(DOMAIN)}, timeout=300)
+        assert r.returncode == 0, r.stderr[-2000:]
+        sub.wait(timeout=60)
+    finally:
+        if sub.poll() is None:
+            sub.kill()
+            sub.wait()
+    assert sub.returncode == 0, (tmp_path / "sub.err").read_text()
+    got = [idl.JointState.deserialize(bytes.fromhex(line)) for line in (tmp_path / "sub.out").read_text().splitlines()]
+    assert len(got) == 3000, "every step's joint state reached Fast DDS"
+    recorded = {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in _bag_joint_states(tmp_path / "bag")}
+    stamps = [(m.header.stamp.sec, m.header.stamp.nanosec) for m in got]
+    assert stamps == sorted(set(stamps)), "samples arrive once each, in order"
+    for m in got:
+        assert m == recorded[(m.header.stamp.sec, m.header.stamp.nanosec)], "Fast DDS got what the bag holds"
+    assert len(got[0].name) == 7 and np.all(np.isfinite(got[0].position))
+
+
+def test_our_echo_receives_a_fastdds_publisher(peer, causal_arm_bin, private_netns):
+    want = _sample_json()
+    samples = []
+    for i in range(3):
+        msg = idl.JointState(header=idl.Header(stamp=idl.Time(sec=1234 + i, nanosec=567890123),
+                                               frame_id=want["header"]["frame_id"]),
+                             name=JOINT_NAMES, position=want["position"], velocity=want["velocity"],
+                             effort=want["effort"])
+        samples.append(msg)
+    echo = subprocess.Popen([str(causal_arm_bin), "topic", "echo", "/joint_states", "--type",
+                             "sensor_msgs/msg/JointState", "--count", "3", "--timeout", "60"],
+                            env=fastdds.env(DOMAIN + 1), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    pub = subprocess.run([str(peer), "pub", "rt/joint_states", JOINT_STATE, "60"],
+                         input="".join(m.serialize().hex() + "\n" for m in samples),
+                         env=fastdds.env(DOMAIN + 1), capture_output=True, text=True, timeout=90)
+    out, err = echo.communicate(timeout=60)
+    assert pub.returncode == 0, pub.stderr
+    assert echo.returncode == 0, err
+    lines = [json.loads(line) for line in out.splitlines() if line.strip()]
+    assert len(lines) == 3
+    for got, sent in zip(lines, samples):
+        _assert_joint_state_equal(got, _as_dict(sent))
+
+
+def test_our_service_call_reaches_a_fastdds_server_naming_its_reply_reader(peer, run_cli, private_netns):
+    """`causal-arm service call` (rmw_fastrtps mapping) sends its reply reader's GUID as the
+    related sample identity, so the Fast DDS server waits for that reader before replying
+    (patches/ros2-client-service-reply-reader.diff); two calls, two right replies."""
+    reply = idl.GetModelInfoReply(success=True, message="served by Fast DDS", models=["fm", "im-mono"],
+                                  state_names=["theta0", "theta1"], action_names=["a0"], metrics_json='{"x": 1}')
+    server = subprocess.Popen([str(peer), "serve", "/trainer/model_info", idl.GetModelInfoRequest.__idl_typename__,
+                               idl.GetModelInfoReply.__idl_typename__, "2", "90", fastdds.enhanced_payload(reply).hex()],
+                              env=fastdds.env(DOMAIN + 2), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for model in ["fm", "im-mono"]:
+            r = run_cli("service", "call", "/trainer/model_info", "--type", "causal_arm_msgs/srv/GetModelInfo",
+                        "--json", json.dumps({"model": model}), "--timeout", "30",
+                        env={"ROS_DOMAIN_ID": str(DOMAIN + 2), "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}, timeout=60)
+            assert r.returncode == 0, r.stderr[-2000:]
+            got = json.loads(r.stdout)
+            assert got["success"] and got["message"] == reply.message and got["models"] == reply.models
+            assert got["state_names"] == reply.state_names and got["metrics_json"] == reply.metrics_json
+        out, err = server.communicate(timeout=60)
+    finally:
+        if server.poll() is None:
+            server.kill()
+            server.wait()
+    assert server.returncode == 0, err
+    requests = [line.split(" ") for line in out.splitlines()]
+    assert [kind for kind, _ in requests] == ["reader", "reader"], "each request named its reply reader"
+    assert [fastdds.from_enhanced(idl.GetModelInfoRequest, bytes.fromhex(h)).model for _, h in requests] == \
+        ["fm", "im-mono"]
+
+
+@pytest.fixture(scope="module")
+def model_dir(run_cli, tmp_path_factory):
+    d = tmp_path_factory.mktemp("fastdds_trainer")
+    r = run_cli("generate", "exp1", "--profile", "quick", "--steps", "1200", "--seed", "5", "--out", d / "bag")
+    assert r.returncode == 0, r.stderr
+    r = run_cli("train", "--bag", d / "bag", "--model", "fm", "--epochs", "3", "--folds", "2", "--fm-hidden",
+                "32,32", "--out", d / "models", "--cache", d / "cache", timeout=300)
+    assert r.returncode == 0, r.stderr
+    return d / "models"
+
+
+@pytest.fixture(scope="module")
+def trainer_node(model_dir, causal_arm_bin, private_netns_module):
+    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_fastrtps_cpp", ROS_DOMAIN_ID=str(DOMAIN + 3))
+    with node_process(causal_arm_bin.parent / "causal_arm_trainer", ["-p", f"model_dir:={model_dir}"], env) as proc:
+        yield proc
+
+
+def _predict_requests(rows_per_request, seed):
+    rng = np.random.default_rng(seed)
+    out = []
+    for rows in rows_per_request:
+        state, action = rng.uniform(-1, 1, (rows, 10)), rng.uniform(-0.05, 0.05, (rows, 7))
+        out.append((state, action, idl.PredictNextStateRequest(state=state.ravel().tolist(),
+                                                               action=action.ravel().tolist(), rows=rows)))
+    return out
+
+
+def _check_predictions(model_dir, made, replies):
+    for (state, action, request), reply in zip(made, replies):
+        assert reply.success, reply.message
+        got = np.array(reply.next_state).reshape(request.rows, 10)
+        expected = numpy_predict(model_dir, "fm", np.hstack([state[:50], action[:50]]))
+        np.testing.assert_allclose(got[:50], expected, rtol=1e-4, atol=1e-5)
+
+
+def test_a_fastdds_client_gets_its_own_reply_to_each_of_several_concurrent_requests(peer, trainer_node, model_dir):
+    """Eight requests written back to back, of 1 to 8 rows: every reply is matched to its
+    request by related sample identity and holds that request's predictions."""
+    made = _predict_requests(range(1, 9), 8)
+    replies = fastdds.call(peer, DOMAIN + 3, "/trainer/predict_next_state", idl.PredictNextStateRequest,
+                           idl.PredictNextStateReply, [m[2] for m in made])
+    _check_predictions(model_dir, made, replies)
+    assert [len(r.next_state) for r in replies] == [10 * n for n in range(1, 9)]
+    info = fastdds.call(peer, DOMAIN + 3, "/trainer/model_info", idl.GetModelInfoRequest, idl.GetModelInfoReply,
+                        [idl.GetModelInfoRequest(model="fm")])[0]
+    assert info.success and "fm" in info.models, info.message
+
+
+def test_the_advertised_row_limit_reaches_a_fastdds_client(peer, trainer_node, model_dir):
+    """100,000 rows: a 13.6 MB request from Fast DDS and an 8 MB reply back."""
+    made = _predict_requests([100_000], 9)
+    replies = fastdds.call(peer, DOMAIN + 3, "/trainer/predict_next_state", idl.PredictNextStateRequest,
+                           idl.PredictNextStateReply, [m[2] for m in made], timeout=120)
+    _check_predictions(model_dir, made, replies)

@@ -48,6 +48,17 @@ impl Message {
     self.submessages.push(submessage);
   }
 
+  /// Octets of this message on the wire (RTPS header and submessages); the
+  /// writer's pacing counts them.
+  pub(crate) fn len_serialized(&self) -> usize {
+    RTPS_MESSAGE_HEADER_SIZE
+      + self
+        .submessages
+        .iter()
+        .map(|s| SUBMESSAGE_HEADER_SIZE + s.header.content_length as usize)
+        .sum::<usize>()
+  }
+
   /// Serialize this outbound message into a single datagram buffer, copying the
   /// payload exactly once.
   ///

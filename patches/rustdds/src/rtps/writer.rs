@@ -108,7 +108,20 @@ pub(crate) enum SendProgress {
     cursor: SampleCursor,
     blocked: BTreeSet<SocketId>,
   },
+  /// The pacing budget of one burst is spent (see [`PACED_BURST_BYTES`]);
+  /// resume at `cursor` after [`PACE_INTERVAL`].
+  Paced { cursor: SampleCursor },
 }
+
+/// Most octets of one fragmented sample sent in one burst. A UDP receiver only
+/// sees the datagrams its socket buffer holds when its thread next runs: Linux's
+/// default (`net.core.rmem_default`, 208 KiB) holds about three 64 KiB
+/// datagrams, so an unpaced multi-MB sample lost most of its fragments, and
+/// some peers (CycloneDDS with its default buffer) then never asked for them.
+pub(crate) const PACED_BURST_BYTES: usize = 128 * 1024;
+/// Pause between two bursts of one fragmented sample: at most
+/// `PACED_BURST_BYTES` per millisecond (128 MB/s).
+pub(crate) const PACE_INTERVAL: std::time::Duration = std::time::Duration::from_millis(1);
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum TimedEvent {
@@ -116,6 +129,8 @@ pub(crate) enum TimedEvent {
   CacheCleaning,
   SendRepairData { to_reader: GUID },
   SendRepairFrags { to_reader: GUID },
+  /// Continue a fragmented sample whose burst was paced.
+  ResumePacedSend,
 }
 
 // This is used to construct an actual Writer.
@@ -250,6 +265,9 @@ pub(crate) struct Writer {
   /// WouldBlock. Drained by the event loop, which enqueues this writer on those
   /// sockets' round-robin queues and arms write readiness.
   blocked_sockets: BTreeSet<SocketId>,
+  /// Pacing: a fragmented sample's burst was cut short; no push before the
+  /// scheduled `TimedEvent::ResumePacedSend`.
+  paced: bool,
 
   /// Contains timer that needs to be set to timeout with duration of
   /// self.heartbeat_period timed_event_handler sends notification when timer
@@ -357,6 +375,7 @@ impl Writer {
       last_sent: SequenceNumber::zero(),
       sample_cursor: SampleCursor::Fresh,
       blocked_sockets: BTreeSet::new(),
+      paced: false,
       timed_event_timer,
       like_stateless: i.like_stateless,
       qos_policies: i.qos_policies,
@@ -541,6 +560,10 @@ impl Writer {
           self.schedule_repair_frags(reader_guid, self.repair_interval());
         }
       } // SendRepairFrags
+      TimedEvent::ResumePacedSend => {
+        self.paced = false;
+        self.process_pending();
+      }
     } // match
   } // fn
 
@@ -775,6 +798,9 @@ impl Writer {
     // The doorbell enqueues this writer's id and then wakes. A sample admitted
     // while we are here pushes another id, so the next wake runs us again. The
     // shared buffer's `last_seq` is the source of truth.
+    if self.paced {
+      return; // the pacing timer resumes the current sample
+    }
     loop {
       let last_available = self.send_buffer.last_change_sequence_number();
       if self.last_sent >= last_available {
@@ -879,6 +905,7 @@ impl Writer {
             target_reader_opt,
             cursor,
             push_class,
+            true, // paced
           )
         };
         match progress {
@@ -907,6 +934,12 @@ impl Writer {
             self.sample_cursor = SampleCursor::Fresh;
             self.send_buffer.set_sent_frontier(sequence_number);
             self.mark_change_sent_to_all_readers(sequence_number);
+          }
+          SendProgress::Paced { cursor } => {
+            self.sample_cursor = cursor;
+            self.paced = true;
+            self.schedule_timed_event(PACE_INTERVAL, TimedEvent::ResumePacedSend);
+            return;
           }
         }
       } else {
@@ -939,6 +972,20 @@ impl Writer {
     }
   }
 
+  /// The last sequence number a HEARTBEAT may advertise. While a fragmented
+  /// sample is still being pushed (paced or blocked mid-way), it and later ones
+  /// are not advertised: a HEARTBEAT advertising a sample whose fragments are
+  /// still arriving made CycloneDDS acknowledge that sample at once, and it
+  /// then never delivered it (seen with paced multi-MB service replies).
+  fn advertised_last_sn(&self) -> SequenceNumber {
+    let last = self.send_buffer.last_change_sequence_number();
+    if self.push_mode && self.sample_cursor != SampleCursor::Fresh {
+      last.min(self.last_sent)
+    } else {
+      last
+    }
+  }
+
   /// nonblocking-transmit: drain and return the sockets on which the last push
   /// attempt hit WouldBlock, so the event loop can enqueue this writer for a
   /// round-robin resume on write readiness.
@@ -966,6 +1013,7 @@ impl Writer {
       target_reader_opt,
       SampleCursor::Fresh,
       TrafficClass::Control,
+      false, // a repair goes out whole
     );
     fragmentation_needed
   }
@@ -980,6 +1028,7 @@ impl Writer {
     target_reader_opt: Option<&RtpsReaderProxy>,
     cursor: SampleCursor,
     class: TrafficClass,
+    paced: bool,
   ) -> (bool, SendProgress) {
     // First make sure that if the data is meant for a single reader only, we do
     // not accidentally send it to everyone.
@@ -1008,10 +1057,14 @@ impl Writer {
     let messages_to_send =
       FragmentationIter::new_resume(self, cc, target_reader_opt, send_also_heartbeat, cursor);
     let fragmentation_needed = messages_to_send.fragmentation_needed();
+    let mut messages_to_send = messages_to_send.peekable();
+    let mut burst_bytes = 0;
 
     // Send the messages, either to all readers or just one, stopping at the
-    // first message that a socket could not accept.
-    for (resume_cursor, msg) in messages_to_send {
+    // first message that a socket could not accept, or when a fragmented
+    // sample's burst is spent (pacing).
+    while let Some((resume_cursor, msg)) = messages_to_send.next() {
+      burst_bytes += msg.len_serialized();
       let blocked = match target_reader_opt {
         None => self.send_message_to_readers(
           DeliveryMode::Multicast,
@@ -1034,6 +1087,16 @@ impl Writer {
             blocked,
           },
         );
+      }
+      if paced && fragmentation_needed && burst_bytes >= PACED_BURST_BYTES {
+        if let Some((next_cursor, _)) = messages_to_send.peek() {
+          return (
+            fragmentation_needed,
+            SendProgress::Paced {
+              cursor: *next_cursor,
+            },
+          );
+        }
       }
     }
     (fragmentation_needed, SendProgress::Complete)
@@ -1087,7 +1150,7 @@ impl Writer {
         .heartbeat_msg(
           self.entity_id(), // from Writer
           self.send_buffer.first_change_sequence_number(),
-          self.send_buffer.last_change_sequence_number(),
+          self.advertised_last_sn(),
           self.next_heartbeat_count(),
           self.endianness,
           EntityId::UNKNOWN, // to Reader
@@ -2067,7 +2130,7 @@ impl Writer {
           if self.is_reliable() && !self.like_stateless {
             let new_reader_guid = reader_proxy.remote_reader_guid;
             let first = self.send_buffer.first_change_sequence_number();
-            let last = self.send_buffer.last_change_sequence_number();
+            let last = self.advertised_last_sn();
             let hb_message = MessageBuilder::new()
               .ts_msg(self.endianness, Some(Timestamp::now()))
               .heartbeat_msg(
@@ -2570,7 +2633,7 @@ impl<'a> Iterator for FragmentationIter<'a> {
                 .heartbeat_msg(
                   writer.entity_id(), // from Writer
                   writer.send_buffer.first_change_sequence_number(),
-                  writer.send_buffer.last_change_sequence_number(),
+                  writer.advertised_last_sn().max(cc.sequence_number),
                   writer.next_heartbeat_count(),
                   writer.endianness,
                   reader_entity_id, // to Reader
@@ -2628,7 +2691,7 @@ impl<'a> Iterator for FragmentationIter<'a> {
           message_builder = message_builder.heartbeat_msg(
             writer.entity_id(),
             writer.send_buffer.first_change_sequence_number(),
-            writer.send_buffer.last_change_sequence_number(),
+            writer.advertised_last_sn().max(cc.sequence_number),
             writer.next_heartbeat_count(),
             writer.endianness,
             reader_entity_id, // to Reader
@@ -2958,7 +3021,7 @@ mod tests {
               let to_reader = match event {
                 TimedEvent::SendRepairData { to_reader }
                 | TimedEvent::SendRepairFrags { to_reader } => Some(to_reader),
-                TimedEvent::Heartbeat | TimedEvent::CacheCleaning => None,
+                TimedEvent::Heartbeat | TimedEvent::CacheCleaning | TimedEvent::ResumePacedSend => None,
               };
               if to_reader == Some(self.reader_guid) {
                 found.push(event);
@@ -3068,6 +3131,69 @@ mod tests {
         .reader_events(StdDuration::from_millis(50))
         .iter()
         .all(|event| !matches!(event, TimedEvent::SendRepairFrags { .. })));
+    }
+
+    // A pushed fragmented sample goes out in bursts of PACED_BURST_BYTES, each
+    // resuming at the next fragment after a ResumePacedSend timeout, and is not
+    // advertised by HEARTBEATs until it is all out; a repair (unpaced) goes out
+    // whole.
+    #[test]
+    fn fragmented_push_is_paced_and_resumes_at_the_next_fragment() {
+      let mut f = Fixture::user(1, 1_000_000, None);
+      f.writer.process_pending();
+      let mut bursts = 1;
+      let mut last_cursor = f.writer.sample_cursor;
+      while f.writer.last_sent < SequenceNumber::new(1) {
+        assert!(f.writer.paced, "stopped without pacing");
+        match (last_cursor, f.writer.sample_cursor) {
+          (_, SampleCursor::Frag(_)) if bursts == 1 => {}
+          (SampleCursor::Frag(a), SampleCursor::Frag(b)) => assert!(b > a, "{a:?} then {b:?}"),
+          other => panic!("unexpected cursors {other:?}"),
+        }
+        last_cursor = f.writer.sample_cursor;
+        assert_eq!(
+          f.writer.advertised_last_sn(),
+          SequenceNumber::new(0),
+          "a HEARTBEAT advertised the sample still being sent"
+        );
+        f.writer.process_pending(); // a doorbell does not cut the pause short
+        assert_eq!(f.writer.sample_cursor, last_cursor);
+        let started = Instant::now();
+        let event = loop {
+          let fired = f.timer.borrow_mut().poll();
+          if let Some(DpTimerEvent::Writer {
+            event: TimedEvent::ResumePacedSend,
+            ..
+          }) = fired
+          {
+            break TimedEvent::ResumePacedSend;
+          }
+          assert!(started.elapsed() < StdDuration::from_secs(2), "no resume");
+          std::thread::sleep(StdDuration::from_micros(100));
+        };
+        assert!(started.elapsed() <= PACE_INTERVAL + StdDuration::from_millis(50));
+        f.writer.handle_timed_event(event);
+        bursts += 1;
+      }
+      assert!(!f.writer.paced);
+      assert_eq!(f.writer.advertised_last_sn(), SequenceNumber::new(1));
+      let whole = 1_000_000 / PACED_BURST_BYTES + 1;
+      assert!((whole - 1..=whole + 1).contains(&bursts), "{bursts} bursts");
+
+      let cc = f
+        .writer
+        .send_buffer
+        .get_by_sn(SequenceNumber::new(1))
+        .unwrap();
+      let (fragmented, progress) = f.writer.send_cache_change_from(
+        &cc,
+        true,
+        None,
+        SampleCursor::Fresh,
+        TrafficClass::Control,
+        false,
+      );
+      assert!(fragmented && matches!(progress, SendProgress::Complete));
     }
 
     // A repeated ACKNACK count is a copy and changes nothing; a new count does.

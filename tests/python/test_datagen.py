@@ -377,6 +377,14 @@ def test_a_killed_launch_resumes_into_the_bag_of_an_uninterrupted_run(causal_arm
         assert a[topic] == b[topic], f"{topic} differs from the uninterrupted run"
 
 
+def test_generate_reports_progress_in_plain_lines_when_stderr_is_a_pipe(run_cli, tmp_path):
+    """A bar cannot draw into a pipe or a log file: there, progress is plain lines."""
+    r = run_cli("generate", "exp1", "--steps", "300", "--seed", "3", "--out", tmp_path / "bag")
+    assert r.returncode == 0, r.stderr
+    assert "exp1 seed 3: 300/300 steps (" in r.stderr, r.stderr
+    assert "\x1b[" not in r.stderr and "\r" not in r.stderr, "terminal control codes in a pipe"
+
+
 def test_a_killed_generate_resumes_into_the_bag_of_an_uninterrupted_run(causal_arm_bin, run_cli, tmp_path):
     args = ["exp1", "--steps", "150000", "--seed", "2"]
     out = tmp_path / "killed"

@@ -347,6 +347,21 @@ def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply(exp2, causal_arm
         deep_rows(exp2, fresh, 1000, 30)
 
 
+def test_the_advertised_deep_limit_reaches_our_own_client(exp2, explainer_node, run_cli, tmp_path):
+    """1000 rows, the advertised Deep SHAP limit: 5.7 MB to `causal-arm service call`."""
+    from types import SimpleNamespace
+
+    rows, request = deep_request(exp2, 1000)
+    path = tmp_path / "request.json"
+    path.write_text(json.dumps({"method": "deep", "state": request.state, "action": request.action,
+                                "rows": 1000, "background": 0}))
+    env = {"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp", "ROS_DOMAIN_ID": str(DOMAIN)}
+    r = run_cli("service", "call", "/explainer/explain", "--type", "causal_arm_msgs/srv/Explain",
+                "--json", f"@{path}", "--timeout", "60", env=env, timeout=120)
+    assert r.returncode == 0, r.stderr[-800:]
+    check_deep_reply(exp2, rows, SimpleNamespace(**json.loads(r.stdout)))
+
+
 def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply_to_fastdds(exp2, causal_arm_bin, private_netns):
     """rmw_fastrtps's mapping, a Fast DDS client (tests/fastdds): three concurrent requests,
     1000 rows (the advertised limit, 5.7 MB) first, each answered with its own reply."""

@@ -16,6 +16,7 @@ CAP_NET_RAW, which the user namespace gives).
 
 import json
 import os
+import signal
 import socket
 import subprocess
 import threading
@@ -166,10 +167,32 @@ def test_control_the_same_eavesdropper_and_capture_see_an_unsecured_pair(causal_
     assert capture.contains(b"iiwa_joint_1") > 0 and capture.contains(b"joint_states") > 0
 
 
-def test_secured_graph_records_a_complete_bag_equal_to_generate(run_cli, keystore, tmp_path, private_netns):
+def _launch_or_explain_the_stall(causal_arm_bin, args, env, timeout):
+    """Runs `causal-arm launch ARGS`; if it has not ended after `timeout` s, interrupts it as
+    a user would (so it stops its nodes and says how far it got) and fails with its output."""
+    proc = subprocess.Popen([str(causal_arm_bin), "launch", *map(str, args)], env={**os.environ, **env},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGINT)
+        try:
+            out, err = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, err = proc.communicate()
+        useful = [line for line in err.splitlines() if "Submessage decoding failed" not in line]
+        pytest.fail(f"launch did not end within {timeout} s; after SIGINT: stdout {out!r}; "
+                    "stderr (decode errors left out):\n" + "\n".join(useful[-60:]))
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+def test_secured_graph_records_a_complete_bag_equal_to_generate(run_cli, causal_arm_bin, keystore, tmp_path,
+                                                               private_netns):
     env = _secured_env(keystore, enclave=None)
-    r = run_cli("launch", "exp1", "--steps", str(STEPS), "--seed", "4", "--out", tmp_path / "secured",
-                "--ros-args", "--enclave", ENCLAVE, env=env, timeout=300)
+    r = _launch_or_explain_the_stall(causal_arm_bin, ["exp1", "--steps", STEPS, "--seed", "4", "--out",
+                                                      tmp_path / "secured", "--ros-args", "--enclave", ENCLAVE],
+                                     env, timeout=120)
     assert r.returncode == 0, r.stderr[-3000:]
     assert f"{STEPS} of {STEPS} steps" in r.stdout, r.stdout
     assert "WITHOUT security" not in r.stderr

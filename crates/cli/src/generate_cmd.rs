@@ -9,9 +9,9 @@ use causal_arm_datagen::{GenerateOptions, generate};
 use causal_arm_protocol::graph::run_default_text;
 use causal_arm_protocol::{Experiment, Profile, RunPlan};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::choice::choice;
+use crate::progress::Counter;
 
 /// Arguments shared by `generate` and `launch`; the run's defaults come from the graph
 /// file (launch_scripts/graph.toml), as the nodes' do.
@@ -113,44 +113,33 @@ fn within_graph_range(name: &str, value: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Progress bar with rate and ETA for `total` steps.
-pub fn step_progress(total: u64, what: &str) -> ProgressBar {
-    let bar = ProgressBar::new(total);
-    bar.set_style(
-        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} steps {per_sec} ETA {eta}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    bar.set_message(what.to_owned());
-    bar
-}
-
 /// Runs `causal-arm generate`.
 pub fn run(args: &GenerateArgs) -> anyhow::Result<()> {
     let options = args.options()?;
     let total = options.plan.total_steps();
-    let bar = step_progress(
+    let mut counter = Counter::new(
         total,
         &format!("{} seed {}", options.experiment, options.seed),
+        "steps",
     );
     let start = Instant::now();
     let mut progress = |done: u64, _| {
         if done.is_multiple_of(256) || done == total {
-            bar.set_position(done);
+            counter.set(done);
         }
     };
-    let summary = match args.resume {
+    let generated = match args.resume {
         true => causal_arm_datagen::generate_resumed(&options, &mut progress),
         false => generate(&options, &mut progress),
-    }
-    .with_context(|| {
+    };
+    counter.finish();
+    let summary = generated.with_context(|| {
         format!(
             "generating {} into {}",
             options.experiment,
             options.out.display()
         )
     })?;
-    bar.finish();
     let secs = start.elapsed().as_secs_f64();
     let resumed = match summary.resumed_at {
         0 => String::new(),

@@ -17,7 +17,8 @@ use causal_arm_datagen::GenerateOptions;
 use causal_arm_graph::RunParams;
 use causal_arm_protocol::graph::graph;
 
-use crate::generate_cmd::{GenerateArgs, step_progress};
+use crate::generate_cmd::GenerateArgs;
+use crate::progress::Counter;
 
 /// `causal-arm launch`: the run's options, as for `generate`.
 #[derive(Debug, clap::Args)]
@@ -213,18 +214,18 @@ fn follow_run(
     let acks = node.subscription::<Clock>(causal_arm_graph::ACK_TOPIC, qos::default_reliable())?;
     let step_ns = options.sim.dt * options.sim.substeps as f64 * 1e9;
     let total = options.plan.total_steps();
-    let bar = step_progress(
+    let mut counter = Counter::new(
         total,
         &format!("{} seed {} (DDS graph)", options.experiment, options.seed),
+        "steps",
     );
     loop {
         while let Ok(Some((ack, _))) = acks.take() {
-            bar.set_position(
-                ((ns_from_time(&ack.clock) as f64 / step_ns).round() as u64 + 1).min(total),
-            );
+            counter
+                .set(((ns_from_time(&ack.clock) as f64 / step_ns).round() as u64 + 1).min(total));
         }
         if let Some(status) = recorder.try_wait()? {
-            bar.finish();
+            counter.finish();
             return Ok(status);
         }
         if stop.load(Ordering::SeqCst) {
@@ -235,7 +236,7 @@ fn follow_run(
                 && !status.success()
             {
                 interrupt(recorder);
-                bar.abandon();
+                counter.finish();
                 let _ = wait_with_timeout(recorder, Duration::from_secs(30));
                 bail!(
                     "{name} failed ({status}); the recorder finalized the bag with the steps it had"

@@ -6,8 +6,9 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-/// How often a plain line is printed when stderr is not a terminal.
-const PLAIN_EVERY: Duration = Duration::from_secs(10);
+/// Longest silence of a long command when stderr is not a terminal (every command's
+/// plain progress lines share it).
+pub const PLAIN_EVERY: Duration = Duration::from_secs(10);
 
 /// A counter of `total` units with rate and ETA.
 pub struct Counter {

@@ -2,7 +2,7 @@
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::bail;
 use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Dataset, Experiment, load_bags};
@@ -14,6 +14,7 @@ use causal_arm_trainer::{Figure, LrSchedule, ModelKind, ModelRequest, Profile, T
 use clap::Args;
 
 use crate::choice::choice;
+use crate::progress::PLAIN_EVERY;
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// Arguments of `causal-arm train`.
@@ -96,9 +97,6 @@ pub struct TrainArgs {
     #[arg(long)]
     out: PathBuf,
 }
-
-/// Longest silence of `causal-arm train` when its stderr is not a terminal.
-const PLAIN_EVERY: Duration = Duration::from_secs(10);
 
 fn bar_for(label: &str, epochs: usize, rows: usize) -> ProgressBar {
     let bar = ProgressBar::new((epochs * rows) as u64);

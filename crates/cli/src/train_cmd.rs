@@ -12,10 +12,10 @@ use causal_arm_trainer::problems::FmTarget;
 use causal_arm_trainer::structure::{Auxiliary, FoundGraph};
 use causal_arm_trainer::{Figure, LrSchedule, ModelKind, ModelRequest, Profile, TrainOptions};
 use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::choice::choice;
 use crate::progress::PLAIN_EVERY;
-use indicatif::{ProgressBar, ProgressStyle};
 
 /// Arguments of `causal-arm train`.
 #[derive(Debug, Args)]

@@ -10,8 +10,11 @@ use std::path::{Path, PathBuf};
 
 pub mod emit;
 pub mod parse;
+pub mod type_hash;
 
 pub use emit::{generate, generate_at};
+pub use type_hash::{FieldDescription, TypeHashError, TypeIndex};
+
 pub use parse::{
     ArrayKind, BaseType, Constant, Field, FieldType, MessageSpec, ParseError, ServiceSpec, Value,
     parse_message, parse_service,

@@ -47,6 +47,9 @@ pub trait RosMessage:
     const NAME: &'static str;
     /// Full ROS name, e.g. `sensor_msgs/msg/JointState`.
     const ROS_TYPE: &'static str;
+    /// REP-2011 hash of the type's description (`RIHS01_<64 hex>`), computed from the
+    /// `.msg` at build time, as Iron-and-later endpoints and bags carry it.
+    const TYPE_HASH: &'static str;
     /// DDS type name as rmw uses it, e.g. `sensor_msgs::msg::dds_::JointState_`.
     fn dds_type_name() -> String;
     /// Schema text as rosbag2 writes it into MCAP (`ros2msg` encoding): the definition,
@@ -69,6 +72,8 @@ pub trait RosService {
     type Response: RosMessage;
     /// Full ROS name, e.g. `causal_arm_msgs/srv/PredictNextState`.
     const ROS_TYPE: &'static str;
+    /// REP-2011 hash of the service's description (request, response and event).
+    const TYPE_HASH: &'static str;
     /// DDS type of requests, e.g. `causal_arm_msgs::srv::dds_::PredictNextState_Request_`.
     fn dds_request_type_name() -> String;
     /// DDS type of responses.
@@ -364,6 +369,30 @@ mod tests {
     }
 
     #[test]
+    fn type_hashes_are_built_from_the_definitions() {
+        // Jazzy's published hash (codegen's tests check three more standard types).
+        assert_eq!(
+            JointState::TYPE_HASH,
+            "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e"
+        );
+        let ours = [
+            crate::srv::PredictNextState::TYPE_HASH,
+            <crate::srv::PredictNextState as RosService>::Request::TYPE_HASH,
+            <crate::srv::PredictNextState as RosService>::Response::TYPE_HASH,
+            crate::srv::Explain::TYPE_HASH,
+            crate::msg::Action::TYPE_HASH,
+        ];
+        for hash in ours {
+            assert!(
+                hash.starts_with("RIHS01_") && hash.len() == 7 + 64,
+                "{hash}"
+            );
+        }
+        let distinct: std::collections::BTreeSet<_> = ours.iter().collect();
+        assert_eq!(distinct.len(), ours.len(), "every type has its own hash");
+    }
+
+    #[test]
     fn defaults_and_constants_follow_the_msg_files() {
         assert_eq!(crate::geometry_msgs::msg::Quaternion::default().w, 1.0);
         assert_eq!(crate::msg::Action::MAGNET_OFF, -1);
@@ -536,7 +565,7 @@ mod tests {
         assert!(visit_message_type("causal_arm_msgs/PredictNextState_Request", Definition).is_ok());
         assert!(visit_message_type("causal_arm_msgs/srv/PredictNextState", Definition).is_err());
         assert_eq!(service_types().len(), 5);
-        assert_eq!(message_types().len(), 33);
+        assert_eq!(message_types().len(), 34);
         let mut trailing = to_cdr(&h).unwrap();
         trailing.extend_from_slice(&[0; 8]);
         assert!(

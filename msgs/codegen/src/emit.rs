@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::fmt::Write as _;
 
 use crate::parse::{ArrayKind, BaseType, Field, FieldType, MessageSpec, ServiceSpec, Value};
-use crate::{Error, Interface};
+use crate::{Error, Interface, TypeIndex};
 
 /// serde implements `Serialize`/`Deserialize`/`Default` for `[T; N]` only up to this N.
 const MAX_NATIVE_ARRAY: usize = 32;
@@ -31,6 +31,8 @@ struct Registry<'a> {
     /// `pkg/Name` → message spec (messages only; service halves are never referenced).
     messages: BTreeMap<String, &'a MessageSpec>,
     needs_validation: HashMap<String, bool>,
+    /// `pkg/msg/Name`, `pkg/srv/Name(_Request|_Response)` → its RIHS01 type hash.
+    type_hashes: BTreeMap<String, String>,
 }
 
 fn key(pkg: &str, name: &str) -> String {
@@ -382,6 +384,11 @@ impl<'a> Registry<'a> {
         let _ = writeln!(out, "    const ROS_TYPE: &'static str = {ros_type:?};");
         let _ = writeln!(
             out,
+            "    const TYPE_HASH: &'static str = {:?};",
+            self.type_hashes[&ros_type]
+        );
+        let _ = writeln!(
+            out,
             "    fn dds_type_name() -> ::std::string::String {{\n        ::std::string::String::from({:?})\n    }}",
             format!("{pkg}::{kind}::dds_::{name}_")
         );
@@ -437,6 +444,11 @@ impl<'a> Registry<'a> {
             "    type Request = {name}_Request;\n    type Response = {name}_Response;"
         );
         let _ = writeln!(out, "    const ROS_TYPE: &'static str = {ros_type:?};");
+        let _ = writeln!(
+            out,
+            "    const TYPE_HASH: &'static str = {:?};",
+            self.type_hashes[&ros_type]
+        );
         let _ = writeln!(
             out,
             "    fn dds_request_type_name() -> ::std::string::String {{\n        ::std::string::String::from({:?})\n    }}",
@@ -529,6 +541,7 @@ pub fn generate_at(
         root,
         messages,
         needs_validation: HashMap::new(),
+        type_hashes: type_hashes(interfaces)?,
     };
 
     // package → (messages, services), sorted for a stable output.
@@ -554,6 +567,32 @@ pub fn generate_at(
     }
     tables.emit(&mut out);
     Ok(out)
+}
+
+/// The RIHS01 hash of every message, service and service half of `interfaces`.
+fn type_hashes(interfaces: &[Interface]) -> Result<BTreeMap<String, String>, Error> {
+    let index = TypeIndex::new(interfaces);
+    let mut names = Vec::new();
+    for i in interfaces {
+        match i {
+            Interface::Message { spec, .. } => {
+                names.push(format!("{}/msg/{}", spec.package, spec.name))
+            }
+            Interface::Service { spec, .. } => {
+                let base = format!("{}/srv/{}", spec.package, spec.name);
+                names.push(format!("{base}_Request"));
+                names.push(format!("{base}_Response"));
+                names.push(base);
+            }
+        }
+    }
+    names
+        .into_iter()
+        .map(|name| {
+            let hash = index.rihs01(&name).map_err(Error::TypeHash)?;
+            Ok((name, hash))
+        })
+        .collect()
 }
 
 /// Every message by `pkg/msg/Name`; a type declared twice is an error.

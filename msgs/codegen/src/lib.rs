@@ -61,6 +61,8 @@ pub enum Error {
     },
     /// A message contains itself (directly or through others).
     Recursive(String),
+    /// A type's REP-2011 hash needs a definition that was not given.
+    TypeHash(TypeHashError),
 }
 
 impl fmt::Display for Error {
@@ -72,6 +74,7 @@ impl fmt::Display for Error {
                 write!(f, "{file}: type {ros_type} is defined twice")
             }
             Error::Recursive(chain) => write!(f, "recursive message definition: {chain}"),
+            Error::TypeHash(e) => e.fmt(f),
         }
     }
 }

@@ -120,6 +120,29 @@ def test_metadata_yaml_describes_the_bag(exp1_bag):
     assert meta["message_count"] == 600 * 8 + 1
 
 
+def test_every_topic_carries_its_rihs01_type_hash_as_rosbags_computes_it(exp1_bag):
+    """REP-2011 hashes in metadata.yaml (type_description_hash) and in each MCAP channel's
+    metadata (topic_type_hash), as rosbag2 on Jazzy writes them, equal rosbags' own
+    computation from the type definitions (standard Jazzy types and the bag's own)."""
+    import yaml
+    from mcap.reader import make_reader
+    from rosbags.typesys import Stores, get_typestore
+
+    bag = pathlib.Path(exp1_bag)
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    in_yaml = {t["topic_metadata"]["name"]: t["topic_metadata"]["type_description_hash"]
+               for t in meta["topics_with_message_count"]}
+    (mcap_path,) = bag.glob("*.mcap")
+    with open(mcap_path, "rb") as f:
+        channels = make_reader(f).get_summary().channels.values()
+        in_mcap = {c.topic: c.metadata["topic_type_hash"] for c in channels}
+    assert in_yaml == in_mcap
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        for conn in reader.connections:
+            assert in_yaml[conn.topic] == reader.typestore.hash_rihs01(conn.msgtype), conn.topic
+    assert in_yaml["/joint_states"] == "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e"
+
+
 @pytest.mark.parametrize("args,needle", [
     (["generate", "exp3", "--out", "X"], 'unknown experiment "exp3"'),
     (["generate", "exp1", "--steps", "0", "--out", "X"], "--steps must be a positive number, got 0"),

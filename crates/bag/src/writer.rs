@@ -75,6 +75,7 @@ pub fn offered_qos_yaml(
 struct TopicEntry {
     channel_id: u16,
     ros_type: &'static str,
+    type_hash: &'static str,
     qos_yaml: String,
     count: u64,
     sequence: u32,
@@ -248,7 +249,7 @@ impl BagWriter {
                 "offered_qos_profiles".to_owned(),
                 offered_qos_yaml.to_owned(),
             ),
-            ("topic_type_hash".to_owned(), String::new()),
+            ("topic_type_hash".to_owned(), M::TYPE_HASH.to_owned()),
         ]);
         let channel_id = writer
             .add_channel(schema, topic, "cdr", &metadata)
@@ -258,6 +259,7 @@ impl BagWriter {
             TopicEntry {
                 channel_id,
                 ros_type: M::ROS_TYPE,
+                type_hash: M::TYPE_HASH,
                 qos_yaml: offered_qos_yaml.to_owned(),
                 count: 0,
                 sequence: 0,
@@ -424,7 +426,7 @@ impl BagWriter {
                         r#type: t.ros_type.to_owned(),
                         serialization_format: "cdr".to_owned(),
                         offered_qos_profiles: qos,
-                        type_description_hash: String::new(),
+                        type_description_hash: t.type_hash.to_owned(),
                     },
                     message_count: t.count,
                 }

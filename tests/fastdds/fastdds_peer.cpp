@@ -16,12 +16,17 @@
 //        "INDEX HEX" for each reply, matched to its request by related sample identity
 //   fastdds_peer serve SERVICE REQ_TYPE REP_TYPE COUNT TIMEOUT_S REPLY_HEX
 //        answers COUNT requests with REPLY_HEX, printing each request's hex
+//   fastdds_peer discover SECONDS
+//        prints "writer|reader TOPIC TYPE USER_DATA_HEX" for every endpoint discovered
 //
 // Exit codes: 0 done, 1 timeout or protocol error (explained on stderr), 2 usage.
 // ROS_DOMAIN_ID selects the domain, as for ROS 2.
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
+#include <fastdds/rtps/builtin/data/ReaderProxyData.h>
+#include <fastdds/rtps/builtin/data/WriterProxyData.h>
 #include <fastdds/dds/publisher/DataWriter.hpp>
 #include <fastdds/dds/publisher/DataWriterListener.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
@@ -155,20 +160,48 @@ class MatchedReaders : public DataWriterListener {
   std::set<GUID_t> guids_;
 };
 
+/// Prints every remote endpoint as discovery reports it, with its USER_DATA (where
+/// ROS 2 endpoints announce `typehash=RIHS01_...;`, REP-2011).
+class DiscoveryPrinter : public DomainParticipantListener {
+ public:
+  void on_publisher_discovery(DomainParticipant*,
+                              eprosima::fastrtps::rtps::WriterDiscoveryInfo&& info) override {
+    if (info.status == eprosima::fastrtps::rtps::WriterDiscoveryInfo::DISCOVERED_WRITER) {
+      print("writer", info.info.topicName().to_string(), info.info.typeName().to_string(),
+            info.info.m_qos.m_userData.data_vec());
+    }
+  }
+  void on_subscriber_discovery(DomainParticipant*,
+                               eprosima::fastrtps::rtps::ReaderDiscoveryInfo&& info) override {
+    if (info.status == eprosima::fastrtps::rtps::ReaderDiscoveryInfo::DISCOVERED_READER) {
+      print("reader", info.info.topicName().to_string(), info.info.typeName().to_string(),
+            info.info.m_qos.m_userData.data_vec());
+    }
+  }
+
+ private:
+  void print(const char* kind, const std::string& topic, const std::string& type,
+             const std::vector<uint8_t>& user_data) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::cout << kind << " " << topic << " " << type << " " << to_hex(user_data) << std::endl;
+  }
+  std::mutex mutex_;
+};
+
 /// The participant and its entities; created once per run and torn down at exit.
 struct Peer {
   DomainParticipant* participant = nullptr;
   Publisher* publisher = nullptr;
   Subscriber* subscriber = nullptr;
 
-  Peer() {
+  explicit Peer(DomainParticipantListener* listener = nullptr) {
     int domain = 0;
     if (const char* env = std::getenv("ROS_DOMAIN_ID")) domain = std::atoi(env);
     DomainParticipantQos qos = PARTICIPANT_QOS_DEFAULT;
     qos.name("fastdds_peer");
     std::string enclave = "enclave=/;";  // what rmw_fastrtps announces in USER_DATA
     qos.user_data().data_vec(std::vector<uint8_t>(enclave.begin(), enclave.end()));
-    participant = DomainParticipantFactory::get_instance()->create_participant(domain, qos);
+    participant = DomainParticipantFactory::get_instance()->create_participant(domain, qos, listener);
     if (participant == nullptr) fail("cannot create the Fast DDS participant");
     publisher = participant->create_publisher(PUBLISHER_QOS_DEFAULT);
     subscriber = participant->create_subscriber(SUBSCRIBER_QOS_DEFAULT);
@@ -371,16 +404,24 @@ int run_serve(Peer& peer, char** argv, Clock::time_point deadline) {
 
 int main(int argc, char** argv) {
   std::string mode = argc > 1 ? argv[1] : "";
-  const std::map<std::string, int> arity = {{"sub", 6}, {"pub", 5}, {"call", 6}, {"serve", 8}};
+  const std::map<std::string, int> arity = {
+      {"sub", 6}, {"pub", 5}, {"call", 6}, {"serve", 8}, {"discover", 3}};
   auto want = arity.find(mode);
   if (want == arity.end() || argc != want->second) {
     std::cerr << "usage: fastdds_peer sub TOPIC TYPE COUNT TIMEOUT_S | pub TOPIC TYPE TIMEOUT_S"
                  " | call SERVICE REQ_TYPE REP_TYPE TIMEOUT_S"
-                 " | serve SERVICE REQ_TYPE REP_TYPE COUNT TIMEOUT_S REPLY_HEX\n";
+                 " | serve SERVICE REQ_TYPE REP_TYPE COUNT TIMEOUT_S REPLY_HEX | discover SECONDS\n";
     return 2;
   }
   double timeout = std::atof(argv[argc - (mode == "serve" ? 2 : 1)]);
   auto deadline = Clock::now() + std::chrono::milliseconds(static_cast<long>(timeout * 1000));
+  if (mode == "discover") {
+    DiscoveryPrinter printer;
+    Peer peer(&printer);
+    std::this_thread::sleep_until(deadline);
+    peer.participant->set_listener(nullptr);
+    return 0;
+  }
   Peer peer;
   if (mode == "sub") return run_sub(peer, argv, deadline);
   if (mode == "pub") return run_pub(peer, argv, deadline);

@@ -143,3 +143,4 @@ def test_unknown_message_type_is_rejected(run_cli, private_netns):
     result = run_cli("topic", "echo", "/x", "--type", "sensor_msgs/msg/JointStat", timeout=30)
     assert result.returncode != 0
     assert "sensor_msgs/msg/JointStat" in result.stderr
+

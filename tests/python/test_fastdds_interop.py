@@ -172,3 +172,46 @@ def test_the_advertised_row_limit_reaches_a_fastdds_client(peer, trainer_node, m
     replies = fastdds.call(peer, DOMAIN + 3, "/trainer/predict_next_state", idl.PredictNextStateRequest,
                            idl.PredictNextStateReply, [m[2] for m in made], timeout=120)
     _check_predictions(model_dir, made, replies)
+
+
+def test_every_endpoint_announces_its_type_hash_in_user_data(peer, causal_arm_bin, private_netns):
+    """REP-2011: our publishers, subscriptions and service endpoints announce
+    `typehash=RIHS01_...;` in USER_DATA, as Fast DDS sees them in discovery (rustdds and
+    ros2-client patched to send endpoint USER_DATA). CycloneDDS Python 11.0.1 crashes on
+    taking any builtin DCPSPublication sample, so Fast DDS is the witness here."""
+    domain = DOMAIN + 5
+    env = fastdds.env(domain)
+    with open(os.devnull, "w") as null:
+        ours = [
+            subprocess.Popen([str(causal_arm_bin), "topic", "pub", "/joint_states", "--type",
+                              "sensor_msgs/msg/JointState", "--json", json.dumps(_sample_json()), "--count", "200",
+                              "--rate", "20"], env=env, stdout=null, stderr=null),
+            subprocess.Popen([str(causal_arm_bin), "topic", "echo", "/joint_states", "--type",
+                              "sensor_msgs/msg/JointState", "--count", "1000", "--timeout", "30"], env=env,
+                             stdout=null, stderr=null),
+            subprocess.Popen([str(causal_arm_bin), "service", "call", "/trainer/model_info", "--type",
+                              "causal_arm_msgs/srv/GetModelInfo", "--timeout", "30"], env=env, stdout=null,
+                             stderr=null),
+        ]
+    try:
+        seen = subprocess.run([str(peer), "discover", "8"], env=env, capture_output=True, text=True, timeout=60)
+    finally:
+        for p in ours:
+            p.kill()
+            p.wait()
+    assert seen.returncode == 0, seen.stderr
+    endpoints = {}
+    for line in seen.stdout.splitlines():
+        kind, topic, type_name, user_data = (line.split(" ") + [""])[:4]
+        endpoints[(kind, topic)] = (type_name, bytes.fromhex(user_data))
+    wanted = [("writer", "rt/joint_states"), ("reader", "rt/joint_states"),
+              ("writer", "rq/trainer/model_infoRequest"), ("reader", "rr/trainer/model_infoReply")]
+    for key in wanted:
+        assert key in endpoints, (key, sorted(endpoints))
+        type_name, user_data = endpoints[key]
+        assert user_data.startswith(b"typehash=RIHS01_") and user_data.endswith(b";"), (key, user_data)
+    for kind in ["writer", "reader"]:
+        assert endpoints[(kind, "rt/joint_states")][1] == \
+            b"typehash=RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e;"
+    assert endpoints[("writer", "rq/trainer/model_infoRequest")][1] == \
+        endpoints[("reader", "rr/trainer/model_infoReply")][1], "both halves announce the service's hash"

@@ -261,7 +261,7 @@ impl RosNode {
     ) -> Result<Publisher<M>, NodeError> {
         let t = self.topic::<M>(topic, &qos)?;
         self.node_mut()
-            .create_publisher(&t, Some(qos))
+            .create_publisher(&t, Some(qos::with_type_hash(qos, M::TYPE_HASH)))
             .map_err(dds_err(format!("publisher on {topic}")))
     }
 
@@ -289,8 +289,9 @@ impl RosNode {
                 what: "topic ros_discovery_info".into(),
                 reason: format!("{e:?}"),
             })?;
+        let hash = <causal_arm_msgs::rmw_dds_common::msg::ParticipantEntitiesInfo as RosMessage>::TYPE_HASH;
         self.node_mut()
-            .create_subscription(&topic, Some(qos))
+            .create_subscription(&topic, Some(qos::with_type_hash(qos, hash)))
             .map_err(dds_err("subscription to ros_discovery_info"))
     }
 
@@ -307,7 +308,7 @@ impl RosNode {
     ) -> Result<Subscription<M>, NodeError> {
         let t = self.topic::<M>(topic, &qos)?;
         self.node_mut()
-            .create_subscription(&t, Some(qos))
+            .create_subscription(&t, Some(qos::with_type_hash(qos, M::TYPE_HASH)))
             .map_err(dds_err(format!("subscription to {topic}")))
     }
 
@@ -333,8 +334,8 @@ impl RosNode {
                 mapping,
                 &ros_name,
                 &Self::service_type::<S>(),
-                qos::services(),
-                qos::services(),
+                qos::with_type_hash(qos::services(), S::TYPE_HASH),
+                qos::with_type_hash(qos::services(), S::TYPE_HASH),
             )
             .map_err(dds_err(format!("service server {name}")))
     }
@@ -355,8 +356,8 @@ impl RosNode {
                 mapping,
                 &ros_name,
                 &Self::service_type::<S>(),
-                qos::services(),
-                qos::services(),
+                qos::with_type_hash(qos::services(), S::TYPE_HASH),
+                qos::with_type_hash(qos::services(), S::TYPE_HASH),
             )
             .map_err(dds_err(format!("service client {name}")))
     }

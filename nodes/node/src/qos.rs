@@ -98,3 +98,10 @@ mod tests {
         assert_eq!(latched().durability, Durability::TransientLocal);
     }
 }
+
+/// `qos` with the USER_DATA an Iron-and-later rmw gives an endpoint of a type whose
+/// REP-2011 hash is `type_hash`: `typehash=RIHS01_<hex>;`. Peers read it to tell types of
+/// the same name apart (rmw_cyclonedds warns about endpoints without it).
+pub fn with_type_hash(qos: QosProfile, type_hash: &str) -> QosProfile {
+    qos.user_data(format!("typehash={type_hash};").into_bytes())
+}

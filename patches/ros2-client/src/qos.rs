@@ -104,6 +104,9 @@ pub struct QosProfile {
   pub liveliness: Liveliness,
   /// Liveliness lease duration; `None` = infinite.
   pub liveliness_lease: Option<Duration>,
+  /// USER_DATA announced in discovery; ROS 2 endpoints carry
+  /// `typehash=RIHS01_<hex>;` (REP-2011). Empty: none.
+  pub user_data: Vec<u8>,
 }
 
 impl QosProfile {
@@ -119,18 +122,26 @@ impl QosProfile {
       lifespan: None,
       liveliness: Liveliness::Automatic,
       liveliness_lease: None,
+      user_data: Vec::new(),
     }
   }
 
   /// The default used for publishers: like [`Self::subscription_default`] but
   /// reliable, waiting 100 ms when the send window is full.
   pub const fn publisher_default() -> Self {
-    Self {
-      reliability: Reliability::Reliable {
-        when_full: WhenFull::DEFAULT,
-      },
-      ..Self::subscription_default()
-    }
+    // Field by field: struct update syntax would drop a `Vec` in a const fn.
+    let mut profile = Self::subscription_default();
+    profile.reliability = Reliability::Reliable {
+      when_full: WhenFull::DEFAULT,
+    };
+    profile
+  }
+
+  /// Builder-style setter for USER_DATA (e.g. REP-2011's `typehash=RIHS01_…;`).
+  #[must_use]
+  pub fn user_data(mut self, user_data: Vec<u8>) -> Self {
+    self.user_data = user_data;
+    self
   }
 
   /// Builder-style setter for reliability.
@@ -257,7 +268,7 @@ mod dds_conv {
 
   impl From<&QosProfile> for QosPolicies {
     fn from(p: &QosProfile) -> Self {
-      QosPolicyBuilder::new()
+      let policies = QosPolicyBuilder::new()
         .durability(match p.durability {
           Durability::Volatile => policy::Durability::Volatile,
           Durability::TransientLocal => policy::Durability::TransientLocal,
@@ -286,7 +297,14 @@ mod dds_conv {
         .lifespan(policy::Lifespan {
           duration: to_dds_duration(p.lifespan),
         })
-        .build()
+        .build();
+      if p.user_data.is_empty() {
+        policies
+      } else {
+        policies.with_user_data(policy::UserData {
+          value: p.user_data.clone(),
+        })
+      }
     }
   }
 
@@ -337,6 +355,7 @@ mod dds_conv {
         lifespan: q.lifespan().and_then(|ls| from_dds_duration(ls.duration)),
         liveliness,
         liveliness_lease,
+        user_data: q.user_data().map(|u| u.value).unwrap_or_default(),
       }
     }
   }

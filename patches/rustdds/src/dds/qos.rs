@@ -210,6 +210,7 @@ impl QosPolicyBuilder {
       // (drop glue) which is incompatible with `const fn`, and the built-in QoS
       // policies never need it. Set it via `QosPolicies::with_data_representation`.
       data_representation: None,
+      user_data: None,
       #[cfg(feature = "security")]
       property: None,
     }
@@ -235,6 +236,7 @@ pub struct QosPolicies {
   pub(crate) resource_limits: Option<policy::ResourceLimits>,
   pub(crate) lifespan: Option<policy::Lifespan>,
   pub(crate) data_representation: Option<policy::DataRepresentation>,
+  pub(crate) user_data: Option<policy::UserData>,
   #[cfg(feature = "security")]
   pub(crate) property: Option<policy::Property>,
 }
@@ -332,6 +334,20 @@ impl QosPolicies {
     self.data_representation = Some(data_representation);
     self
   }
+  /// USER_DATA of an endpoint: opaque octets announced in discovery (ROS 2 puts
+  /// `typehash=RIHS01_…;` there, REP-2011).
+  pub fn user_data(&self) -> Option<policy::UserData> {
+    self.user_data.clone()
+  }
+
+  /// These policies with USER_DATA `user_data` (not in the `const` builder: it
+  /// holds a `Vec`).
+  #[must_use]
+  pub fn with_user_data(mut self, user_data: policy::UserData) -> Self {
+    self.user_data = Some(user_data);
+    self
+  }
+
 
   #[cfg(feature = "security")]
   pub fn property(&self) -> Option<policy::Property> {
@@ -362,6 +378,7 @@ impl QosPolicies {
         .data_representation
         .clone()
         .or(self.data_representation.clone()),
+      user_data: other.user_data.clone().or(self.user_data.clone()),
       #[cfg(feature = "security")]
       property: other.property.clone().or(self.property.clone()),
     }
@@ -566,6 +583,7 @@ impl QosPolicies {
       resource_limits,
       lifespan,
       data_representation,
+      user_data,
       #[cfg(feature = "security")]
         property: _, // TODO: properties to parameter list?
     } = self;
@@ -652,6 +670,7 @@ impl QosPolicies {
       data_representation,
       policy::DataRepresentation
     );
+    emit_option!(PID_USER_DATA, user_data, policy::UserData);
 
     Ok(pl)
   }
@@ -718,6 +737,7 @@ impl QosPolicies {
     let lifespan: Option<policy::Lifespan> = get_option!(PID_LIFESPAN);
     let data_representation: Option<policy::DataRepresentation> =
       get_option!(PID_DATA_REPRESENTATION);
+    let user_data: Option<policy::UserData> = get_option!(PID_USER_DATA);
 
     #[cfg(feature = "security")]
     let property: Option<policy::Property> = None; // TODO: Should also properties be read?
@@ -738,6 +758,7 @@ impl QosPolicies {
       resource_limits,
       lifespan,
       data_representation,
+      user_data,
       #[cfg(feature = "security")]
       property,
     })
@@ -946,6 +967,13 @@ pub mod policy {
   ///
   /// On the wire this is `PID_DATA_REPRESENTATION` (0x0073), a CDR
   /// `sequence<int16>`.
+  /// DDS USER_DATA: opaque octets an application attaches to an entity, carried
+  /// in discovery. On the wire `PID_USER_DATA` (0x002c), a CDR `sequence<octet>`.
+  #[derive(Clone, Debug, PartialEq, Eq, Hash, Readable, Writable, Serialize, Deserialize)]
+  pub struct UserData {
+    pub value: Vec<u8>,
+  }
+
   #[derive(Clone, Debug, PartialEq, Eq, Hash, Readable, Writable, Serialize, Deserialize)]
   pub struct DataRepresentation {
     pub value: Vec<DataRepresentationId>,
@@ -1261,3 +1289,40 @@ pub mod policy {
     }
   }
 } // mod policy
+
+#[cfg(test)]
+mod user_data_tests {
+  use std::collections::BTreeMap;
+
+  use super::*;
+
+  // USER_DATA goes into discovery as PID_USER_DATA, a CDR sequence<octet>, and
+  // comes back out of it unchanged (ROS 2 announces `typehash=RIHS01_…;` there).
+  #[test]
+  fn user_data_round_trips_through_the_parameter_list() {
+    let text = b"typehash=RIHS01_0123;".to_vec();
+    let qos = QosPolicies::builder()
+      .reliability(policy::Reliability::BestEffort)
+      .build()
+      .with_user_data(policy::UserData {
+        value: text.clone(),
+      });
+    let pl = qos.to_parameter_list(speedy::Endianness::LittleEndian).unwrap();
+    let user_data: Vec<&Parameter> = pl
+      .iter()
+      .filter(|p| p.parameter_id == ParameterId::PID_USER_DATA)
+      .collect();
+    assert_eq!(user_data.len(), 1);
+    let mut expected = (text.len() as u32).to_le_bytes().to_vec();
+    expected.extend_from_slice(&text);
+    assert_eq!(user_data[0].value, expected);
+
+    let mut map: BTreeMap<ParameterId, Vec<&Parameter>> = BTreeMap::new();
+    for p in &pl {
+      map.entry(p.parameter_id).or_default().push(p);
+    }
+    let back = QosPolicies::from_parameter_list(speedy::Endianness::LittleEndian, &map).unwrap();
+    assert_eq!(back.user_data(), Some(policy::UserData { value: text }));
+    assert_eq!(back.reliability(), qos.reliability());
+  }
+}

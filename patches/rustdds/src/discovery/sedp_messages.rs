@@ -14,7 +14,7 @@ use crate::{
     participant::DomainParticipant,
     qos::{
       policy::{
-        DataRepresentation, Deadline, DestinationOrder, Durability, History, LatencyBudget,
+        DataRepresentation, Deadline, UserData, DestinationOrder, Durability, History, LatencyBudget,
         Lifespan, Liveliness, Ownership, Presentation, Reliability, ResourceLimits,
         TimeBasedFilter,
       },
@@ -180,6 +180,7 @@ pub struct SubscriptionBuiltinTopicData {
   // pub durability_service: Option<DurabilityService>,
   lifespan: Option<Lifespan>,
   data_representation: Option<DataRepresentation>,
+  user_data: Option<UserData>,
 
   // From spec Remote Procedure Call over DDS:
   service_instance_name: Option<String>,
@@ -220,6 +221,7 @@ impl SubscriptionBuiltinTopicData {
       presentation: None,
       lifespan: None,
       data_representation: None,
+      user_data: None,
       // DDS-RPC
       // TODO: these are not implemented
       service_instance_name: None,  // Note: Not implemented
@@ -268,6 +270,7 @@ impl SubscriptionBuiltinTopicData {
     self.presentation = qos.presentation;
     self.lifespan = qos.lifespan;
     self.data_representation = qos.data_representation.clone();
+    self.user_data = qos.user_data.clone();
     // history does not exist
     // resource_limits does not exist
   }
@@ -287,6 +290,7 @@ impl SubscriptionBuiltinTopicData {
       resource_limits: None, // nor Resource Limits, see Figure 8.30 in RTPS spec 2.5
       lifespan: self.lifespan,
       data_representation: self.data_representation.clone(),
+      user_data: self.user_data.clone(),
 
       #[cfg(feature = "security")]
       property: None, // TODO: no property QoS?
@@ -489,6 +493,7 @@ impl ParameterListable for DiscoveredReaderData {
           presentation: _,
           lifespan: _,
           data_representation: _,
+          user_data: _,
 
           service_instance_name,
           related_datawriter_key,
@@ -645,6 +650,7 @@ pub struct PublicationBuiltinTopicData {
   pub destination_order: Option<DestinationOrder>,
   pub presentation: Option<Presentation>,
   pub data_representation: Option<DataRepresentation>,
+  pub user_data: Option<UserData>,
 
   // From Remote Procedure Call over DDS:
   pub service_instance_name: Option<String>,
@@ -684,6 +690,7 @@ impl PublicationBuiltinTopicData {
       destination_order: None,
       presentation: None,
       data_representation: None,
+      user_data: None,
 
       service_instance_name: None,  // TODO: These are not supported/used
       related_datareader_key: None, // TODO
@@ -719,6 +726,7 @@ impl PublicationBuiltinTopicData {
     self.destination_order = qos.destination_order;
     self.presentation = qos.presentation;
     self.data_representation = qos.data_representation.clone();
+    self.user_data = qos.user_data.clone();
   }
 
   pub fn qos(&self) -> QosPolicies {
@@ -736,6 +744,7 @@ impl PublicationBuiltinTopicData {
       resource_limits: None, // nor Resource Limits, see Figure 8.30 in RTPS spec 2.5
       lifespan: self.lifespan,
       data_representation: self.data_representation.clone(),
+      user_data: self.user_data.clone(),
       #[cfg(feature = "security")]
       property: None, // TODO: no property Qos?
     }
@@ -949,6 +958,7 @@ impl ParameterListable for DiscoveredWriterData {
           presentation: _,
           lifespan: _,
           data_representation: _,
+          user_data: _,
 
           service_instance_name,
           related_datareader_key,
@@ -1097,6 +1107,7 @@ impl HasQoSPolicy for TopicBuiltinTopicData {
       resource_limits: self.resource_limits,
       lifespan: self.lifespan,
       data_representation: None, // Topic-level DATA_REPRESENTATION not tracked
+      user_data: None,
       #[cfg(feature = "security")]
       property: None, // TODO: no property Qos?
     }

@@ -78,9 +78,22 @@ pub const PROFILE_NAMES: &[&str] = &[
     "best_effort",
 ];
 
+/// `qos` with the USER_DATA an Iron-and-later rmw gives an endpoint of a type whose
+/// REP-2011 hash is `type_hash`: `typehash=RIHS01_<hex>;`. Peers read it to tell types of
+/// the same name apart (rmw_cyclonedds warns about endpoints without it).
+pub fn with_type_hash(qos: QosProfile, type_hash: &str) -> QosProfile {
+    qos.user_data(format!("typehash={type_hash};").into_bytes())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn type_hash_user_data_is_rmws_text() {
+        let q = with_type_hash(default_reliable(), "RIHS01_ab");
+        assert_eq!(q.user_data, b"typehash=RIHS01_ab;");
+    }
 
     #[test]
     fn recorded_never_drops() {
@@ -97,11 +110,4 @@ mod tests {
         assert!(by_name("fast").is_none());
         assert_eq!(latched().durability, Durability::TransientLocal);
     }
-}
-
-/// `qos` with the USER_DATA an Iron-and-later rmw gives an endpoint of a type whose
-/// REP-2011 hash is `type_hash`: `typehash=RIHS01_<hex>;`. Peers read it to tell types of
-/// the same name apart (rmw_cyclonedds warns about endpoints without it).
-pub fn with_type_hash(qos: QosProfile, type_hash: &str) -> QosProfile {
-    qos.user_data(format!("typehash={type_hash};").into_bytes())
 }

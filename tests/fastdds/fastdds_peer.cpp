@@ -395,8 +395,9 @@ int run_serve(Peer& peer, char** argv, Clock::time_point deadline) {
     std::cout << (reader != GUID_t::unknown() ? "reader " : "writer ") << to_hex(request.bytes)
               << std::endl;
   }
-  auto left = std::chrono::duration_cast<std::chrono::seconds>(deadline - Clock::now()).count();
-  writer->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(std::max<long>(left, 1), 0));
+  // Let the last reply be acknowledged, briefly: a client that got it may already be gone,
+  // and its reader stays matched until its lease ends.
+  writer->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(2, 0));
   return 0;
 }
 

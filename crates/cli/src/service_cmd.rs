@@ -39,6 +39,9 @@ struct CallArgs {
     timeout: f64,
 }
 
+/// Pause after the server is seen, so it can see us too before the request goes out.
+const SERVER_SETTLE: Duration = Duration::from_secs(1);
+
 const TYPES: [&str; 5] = [
     "causal_arm_msgs/srv/PredictNextState",
     "causal_arm_msgs/srv/PredictAction",
@@ -68,7 +71,10 @@ where
     let timeout = Duration::from_secs_f64(args.timeout);
     let mut node = RosNode::new("causal_arm_service_call", &[], ros_args)?;
     let client = node.client::<S>(&args.name)?;
-    if !node.wait_for_service(&client, timeout, Duration::from_millis(300)) {
+    // Matching is only known from our side: a volatile server reader that has not yet
+    // matched our request writer drops the request (Fast DDS skips what was sent before its
+    // first HEARTBEAT). 300 ms lost a request now and then on a loaded machine; 1 s did not.
+    if !node.wait_for_service(&client, timeout, SERVER_SETTLE) {
         bail!(
             "no server of {} ({}) appeared within {timeout:?}",
             args.name,

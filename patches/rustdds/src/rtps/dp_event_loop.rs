@@ -461,22 +461,29 @@ impl DPEventLoop {
     }
     let writer_ids = self.writer_ready.drain_unique();
     for eid in writer_ids {
-      let (blocked, local_readers) = match self.writers.get_mut(&eid) {
-        None => {
-          debug!("Command event for unknown writer {eid:?}");
-          (BTreeSet::new(), vec![])
-        }
+      match self.writers.get_mut(&eid) {
+        None => debug!("Command event for unknown writer {eid:?}"),
         Some(writer) => {
           writer.process_pending();
-          (writer.take_blocked_sockets(), writer.local_readers())
+          self.after_writer_push(eid);
         }
-      };
-      for sid in blocked {
-        self.mark_writer_willing(sid, eid);
       }
-      self.message_receiver.notify_data_to_readers(local_readers);
     }
     false
+  }
+
+  // After a writer pushed samples (on its doorbell or when a paced send
+  // resumes): queue it on the sockets that blocked, and wake its local readers.
+  fn after_writer_push(&mut self, eid: EntityId) {
+    let Some(writer) = self.writers.get_mut(&eid) else {
+      return;
+    };
+    let blocked = writer.take_blocked_sockets();
+    let local_readers = writer.local_readers();
+    for sid in blocked {
+      self.mark_writer_willing(sid, eid);
+    }
+    self.message_receiver.notify_data_to_readers(local_readers);
   }
 
   fn drain_timers(&mut self, preparing_to_stop: bool) {
@@ -516,13 +523,7 @@ impl DPEventLoop {
           if let Some(writer) = self.writers.get_mut(&entity_id) {
             writer.handle_timed_event(event);
             if event == crate::rtps::writer::TimedEvent::ResumePacedSend {
-              // The resumed push may hit a full socket, as on a doorbell.
-              let blocked = writer.take_blocked_sockets();
-              let local_readers = writer.local_readers();
-              for sid in blocked {
-                self.mark_writer_willing(sid, entity_id);
-              }
-              self.message_receiver.notify_data_to_readers(local_readers);
+              self.after_writer_push(entity_id);
             }
           } else if !preparing_to_stop {
             trace!("Timed event for unknown writer {entity_id:?}");

@@ -572,25 +572,11 @@ pub fn generate_at(
 /// The RIHS01 hash of every message, service and service half of `interfaces`.
 fn type_hashes(interfaces: &[Interface]) -> Result<BTreeMap<String, String>, Error> {
     let index = TypeIndex::new(interfaces);
-    let mut names = Vec::new();
-    for i in interfaces {
-        match i {
-            Interface::Message { spec, .. } => {
-                names.push(format!("{}/msg/{}", spec.package, spec.name))
-            }
-            Interface::Service { spec, .. } => {
-                let base = format!("{}/srv/{}", spec.package, spec.name);
-                names.push(format!("{base}_Request"));
-                names.push(format!("{base}_Response"));
-                names.push(base);
-            }
-        }
-    }
-    names
-        .into_iter()
+    index
+        .type_names()
         .map(|name| {
-            let hash = index.rihs01(&name).map_err(Error::TypeHash)?;
-            Ok((name, hash))
+            let hash = index.rihs01(name).map_err(Error::TypeHash)?;
+            Ok((name.to_string(), hash))
         })
         .collect()
 }

@@ -146,6 +146,11 @@ impl TypeIndex {
             .insert(format!("{}/{kind}/{}", spec.package, spec.name), fields);
     }
 
+    /// Every type described, by full name (service events included).
+    pub fn type_names(&self) -> impl Iterator<Item = &str> {
+        self.types.keys().map(String::as_str)
+    }
+
     /// `RIHS01_<64 hex>` of `type_name` (`pkg/msg/Name`, `pkg/srv/Name`, `pkg/srv/Name_Request`).
     pub fn rihs01(&self, type_name: &str) -> Result<String, TypeHashError> {
         let json = self.hashed_json(type_name)?;

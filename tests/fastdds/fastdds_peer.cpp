@@ -9,7 +9,10 @@
 // independent CDR implementation and this program stays type-agnostic, like rmw_fastrtps's
 // serialized-message API.
 //
-//   fastdds_peer sub   TOPIC TYPE COUNT TIMEOUT_S        prints COUNT samples, one hex line each
+//   fastdds_peer sub   TOPIC TYPE COUNT TIMEOUT_S [IDLE_S]
+//        prints COUNT samples, one hex line each; with IDLE_S, stops early once samples have
+//        begun and none came for IDLE_S seconds (a volatile reader that matched after the
+//        writer began cannot know how many it missed)
 //   fastdds_peer pub   TOPIC TYPE TIMEOUT_S              publishes each hex line of stdin
 //   fastdds_peer call  SERVICE REQ_TYPE REP_TYPE TIMEOUT_S
 //        sends every hex line of stdin as one request, all before any reply, then prints
@@ -290,13 +293,21 @@ bool take(DataReader* reader, Clock::time_point deadline, RawSample& sample, Sam
 
 int64_t sequence_of(const SampleIdentity& id) { return id.sequence_number().to64long(); }
 
-int run_sub(Peer& peer, char** argv, Clock::time_point deadline) {
+int run_sub(Peer& peer, int argc, char** argv, Clock::time_point deadline) {
   int count = std::atoi(argv[4]);
-  DataReader* reader = peer.reader(argv[2], argv[3], 100);
+  auto idle = std::chrono::milliseconds(argc > 6 ? static_cast<long>(std::atof(argv[6]) * 1000) : 0);
+  // Deep enough that a slow take never overwrites an unread sample.
+  DataReader* reader = peer.reader(argv[2], argv[3], std::max(100, count));
   RawSample sample;
   SampleInfo info;
   for (int got = 0; got < count; ++got) {
-    if (!take(reader, deadline, sample, info)) {
+    auto until = deadline;
+    if (got > 0 && idle.count() > 0) until = std::min(deadline, Clock::now() + idle);
+    if (!take(reader, until, sample, info)) {
+      if (got > 0 && until < deadline) {
+        std::cerr << "idle after " << got << " of " << count << " samples on " << argv[2] << "\n";
+        return 0;
+      }
       Peer::fail("timeout after " + std::to_string(got) + " of " + std::to_string(count) +
                  " samples on " + argv[2]);
     }
@@ -406,15 +417,16 @@ int run_serve(Peer& peer, char** argv, Clock::time_point deadline) {
 int main(int argc, char** argv) {
   std::string mode = argc > 1 ? argv[1] : "";
   const std::map<std::string, int> arity = {
-      {"sub", 6}, {"pub", 5}, {"call", 6}, {"serve", 8}, {"discover", 3}};
+      {"sub", 7}, {"pub", 5}, {"call", 6}, {"serve", 8}, {"discover", 3}};
   auto want = arity.find(mode);
-  if (want == arity.end() || argc != want->second) {
-    std::cerr << "usage: fastdds_peer sub TOPIC TYPE COUNT TIMEOUT_S | pub TOPIC TYPE TIMEOUT_S"
+  bool optional_idle = mode == "sub" && argc == 6;
+  if (want == arity.end() || (argc != want->second && !optional_idle)) {
+    std::cerr << "usage: fastdds_peer sub TOPIC TYPE COUNT TIMEOUT_S [IDLE_S] | pub TOPIC TYPE TIMEOUT_S"
                  " | call SERVICE REQ_TYPE REP_TYPE TIMEOUT_S"
                  " | serve SERVICE REQ_TYPE REP_TYPE COUNT TIMEOUT_S REPLY_HEX | discover SECONDS\n";
     return 2;
   }
-  double timeout = std::atof(argv[argc - (mode == "serve" ? 2 : 1)]);
+  double timeout = std::atof(argv[mode == "serve" ? 6 : mode == "sub" ? 5 : argc - 1]);
   auto deadline = Clock::now() + std::chrono::milliseconds(static_cast<long>(timeout * 1000));
   if (mode == "discover") {
     DiscoveryPrinter printer;
@@ -424,7 +436,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   Peer peer;
-  if (mode == "sub") return run_sub(peer, argv, deadline);
+  if (mode == "sub") return run_sub(peer, argc, argv, deadline);
   if (mode == "pub") return run_pub(peer, argv, deadline);
   if (mode == "call") return run_call(peer, argv, deadline);
   return run_serve(peer, argv, deadline);

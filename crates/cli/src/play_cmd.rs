@@ -41,7 +41,7 @@ struct MakePublisher<'a> {
 impl MessageTypeVisitor for MakePublisher<'_> {
     type Output = anyhow::Result<PublishFn>;
     fn visit<M: RosMessage>(self) -> Self::Output {
-        let qos = if self.topic == "/robot_description" {
+        let qos = if causal_arm_protocol::topics::LATCHED.contains(&self.topic) {
             qos::latched()
         } else {
             qos::recorded()

@@ -11,12 +11,12 @@ use std::path::{Path, PathBuf};
 
 use causal_arm_babbler::{Exp1Babbler, Exp1Config, Exp2Babbler, Exp2Config};
 use causal_arm_bag::{BagError, BagOptions, BagWriter, offered_qos_yaml};
-use causal_arm_kinematics::{ArmModel, EMBEDDED_IIWA_URDF};
+use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::msg::Action;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_protocol::{
-    Command, Experiment, RunPlan, SimState, StepMessages, action_message, babbler_seed, bag_keys,
-    sim_seed, step_messages, topics,
+    Command, Experiment, LatchedMessages, RunPlan, Scene, SimState, StepMessages, action_message,
+    babbler_seed, bag_keys, scene_markers, sim_seed, topics,
 };
 use causal_arm_sim::{SimConfig, SimError, Simulator};
 use thiserror::Error;
@@ -191,8 +191,8 @@ impl Babbler {
 
 /// Receives the messages of a run in graph order (the recorder, or a test).
 pub trait StepSink {
-    /// Called once before the first step.
-    fn robot_description(&mut self, urdf: &RosString) -> Result<(), GenerateError>;
+    /// Called once before the first step: `/robot_description` and `/tf_static`.
+    fn latched(&mut self, messages: &LatchedMessages) -> Result<(), GenerateError>;
     /// All state messages of one step (owned: a DDS sink publishes them without a copy).
     fn state(&mut self, stamp_ns: u64, messages: StepMessages) -> Result<(), GenerateError>;
     /// The babbler's answer to that state.
@@ -256,8 +256,6 @@ pub fn drive_range(
     sink: &mut dyn StepSink,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<u64, GenerateError> {
-    let model = sim.model().clone();
-    let joint_names = model.joint_names();
     let total = plan.total_steps();
     let per_episode = plan.steps_per_episode.max(1);
     let mut state = sim.state();
@@ -269,7 +267,7 @@ pub fn drive_range(
             commands.new_episode();
             state = sim.state();
         }
-        sink.state(state.stamp_ns, step_messages(&state, &joint_names))?;
+        sink.state(state.stamp_ns, sim.step_messages(&state))?;
         let command = commands.command(&state, k)?;
         sink.action(state.stamp_ns, &action_message(&state, &command, k))?;
         state = sim.step(&command)?;
@@ -283,7 +281,7 @@ pub fn drive_range(
 struct NullSink;
 
 impl StepSink for NullSink {
-    fn robot_description(&mut self, _: &RosString) -> Result<(), GenerateError> {
+    fn latched(&mut self, _: &LatchedMessages) -> Result<(), GenerateError> {
         Ok(())
     }
     fn state(&mut self, _: u64, _: StepMessages) -> Result<(), GenerateError> {
@@ -333,15 +331,15 @@ pub fn run(
     validate(options)?;
     let mut sim = simulator(options)?;
     let mut babbler = Babbler::new(options, sim.model())?;
-    sink.robot_description(&RosString {
-        data: EMBEDDED_IIWA_URDF.to_owned(),
-    })?;
+    sink.latched(&sim.latched_messages())?;
     drive(&options.plan, &mut sim, &mut babbler, sink, progress)
 }
 
 /// Writes a run into a bag.
 pub struct BagSink {
     writer: BagWriter,
+    /// The run's table and cube, drawn by the markers each step writes.
+    scene: Scene,
     messages: u64,
     /// Steps written whose chunk may still be open: (stamp, messages written through it).
     unlanded: std::collections::VecDeque<(u64, u64)>,
@@ -371,7 +369,9 @@ impl BagSink {
         use causal_arm_msgs::rosgraph_msgs::msg::Clock;
         use causal_arm_msgs::sensor_msgs::msg::JointState;
         use causal_arm_msgs::tf2_msgs::msg::TFMessage;
+        use causal_arm_msgs::visualization_msgs::msg::MarkerArray;
         writer.add_topic::<RosString>(topics::ROBOT_DESCRIPTION, &latched)?;
+        writer.add_topic::<TFMessage>(topics::TF_STATIC, &latched)?;
         writer.add_topic::<JointState>(topics::JOINT_STATES, &recorded)?;
         writer.add_topic::<PoseStamped>(topics::EF_POSE, &recorded)?;
         writer.add_topic::<PoseStamped>(topics::OBJECT_POSE, &recorded)?;
@@ -379,9 +379,11 @@ impl BagSink {
         writer.add_topic::<MagnetState>(topics::MAGNET_STATE, &recorded)?;
         writer.add_topic::<Clock>(topics::CLOCK, &recorded)?;
         writer.add_topic::<TFMessage>(topics::TF, &recorded)?;
+        writer.add_topic::<MarkerArray>(topics::SCENE_MARKERS, &recorded)?;
         writer.add_topic::<Action>(topics::ACTION, &recorded)?;
         Ok(Self {
             writer,
+            scene: options.sim.scene(),
             messages: 0,
             unlanded: std::collections::VecDeque::new(),
             landed_stamp: None,
@@ -427,9 +429,11 @@ impl BagSink {
 }
 
 impl StepSink for BagSink {
-    fn robot_description(&mut self, urdf: &RosString) -> Result<(), GenerateError> {
-        self.writer.write(topics::ROBOT_DESCRIPTION, 0, urdf)?;
-        self.messages += 1;
+    fn latched(&mut self, m: &LatchedMessages) -> Result<(), GenerateError> {
+        self.writer
+            .write(topics::ROBOT_DESCRIPTION, 0, &m.robot_description)?;
+        self.writer.write(topics::TF_STATIC, 0, &m.tf_static)?;
+        self.messages += 2;
         Ok(())
     }
 
@@ -442,7 +446,12 @@ impl StepSink for BagSink {
         w.write(topics::MAGNET_STATE, stamp_ns, &m.magnet)?;
         w.write(topics::CLOCK, stamp_ns, &m.clock)?;
         w.write(topics::TF, stamp_ns, &m.tf)?;
-        self.messages += 7;
+        w.write(
+            topics::SCENE_MARKERS,
+            stamp_ns,
+            &scene_markers(&m, &self.scene),
+        )?;
+        self.messages += 8;
         Ok(())
     }
 

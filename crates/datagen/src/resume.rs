@@ -13,9 +13,7 @@ use std::path::{Path, PathBuf};
 use causal_arm_bag::{BagReader, RawMessage};
 use causal_arm_protocol::topics;
 
-use causal_arm_msgs::std_msgs::msg::String as RosString;
-
-use crate::{BagSink, GenerateError, GenerateOptions, StepSink};
+use crate::{BagSink, GenerateError, GenerateOptions};
 
 /// Where a bag is kept while its steps are copied into its replacement.
 pub fn interrupted_dir(dir: &Path) -> PathBuf {
@@ -75,7 +73,7 @@ fn read_resumable(dir: &Path, options: &GenerateOptions) -> Result<Resumable, Ge
     let messages = all
         .into_iter()
         .filter(|m| {
-            m.topic == topics::ROBOT_DESCRIPTION || last.is_some_and(|l| m.log_time_ns <= l)
+            topics::LATCHED.contains(&m.topic.as_str()) || last.is_some_and(|l| m.log_time_ns <= l)
         })
         .collect();
     Ok(Resumable { messages, steps })
@@ -131,8 +129,9 @@ impl BagSink {
             )));
         }
         if let Some(&first_dropped) = old.steps.get(keep as usize) {
-            old.messages
-                .retain(|m| m.topic == topics::ROBOT_DESCRIPTION || m.log_time_ns < first_dropped);
+            old.messages.retain(|m| {
+                topics::LATCHED.contains(&m.topic.as_str()) || m.log_time_ns < first_dropped
+            });
         }
         let aside = interrupted_dir(dir);
         std::fs::rename(dir, &aside)
@@ -143,15 +142,22 @@ impl BagSink {
                 .write_cdr(&m.topic, m.log_time_ns, m.publish_time_ns, &m.data)?;
         }
         sink.messages = old.messages.len() as u64;
-        // Killed before its first chunk landed, the bag lost even the description.
-        if !old
-            .messages
-            .iter()
-            .any(|m| m.topic == topics::ROBOT_DESCRIPTION)
-        {
-            sink.robot_description(&RosString {
-                data: causal_arm_kinematics::EMBEDDED_IIWA_URDF.to_owned(),
-            })?;
+        // Killed before its first chunk landed, the bag lost even the latched messages (a
+        // bag from before `/tf_static` was recorded lacks that one).
+        let has = |topic: &str| old.messages.iter().any(|m| m.topic == topic);
+        let (description, tf_static) = (has(topics::ROBOT_DESCRIPTION), has(topics::TF_STATIC));
+        if !description || !tf_static {
+            let latched = crate::simulator(options)?.latched_messages();
+            if !description {
+                sink.writer
+                    .write(topics::ROBOT_DESCRIPTION, 0, &latched.robot_description)?;
+                sink.messages += 1;
+            }
+            if !tf_static {
+                sink.writer
+                    .write(topics::TF_STATIC, 0, &latched.tf_static)?;
+                sink.messages += 1;
+            }
         }
         sink.writer.land()?;
         sink.landed_stamp = keep.checked_sub(1).map(|i| old.steps[i as usize]);

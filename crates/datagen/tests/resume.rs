@@ -8,7 +8,7 @@ use causal_arm_datagen::{
     BagSink, GenerateOptions, StepSink, drive_range, fast_forward, generate, generate_resumed,
     interrupted_dir, resume_point,
 };
-use causal_arm_protocol::{Experiment, RunPlan, step_messages};
+use causal_arm_protocol::{Experiment, RunPlan};
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("causal-arm-resume-{name}-{}", std::process::id()));
@@ -41,10 +41,7 @@ fn killed_run(out: &Path, landed: u64, more: u64) {
     let options = options(out);
     let (mut sim, mut babbler) = fast_forward(&options, 0).unwrap();
     let mut sink = BagSink::create(out, false, &options).unwrap();
-    let description = causal_arm_msgs::std_msgs::msg::String {
-        data: causal_arm_kinematics::EMBEDDED_IIWA_URDF.to_owned(),
-    };
-    sink.robot_description(&description).unwrap();
+    sink.latched(&sim.latched_messages()).unwrap();
     let plan = &options.plan;
     drive_range(
         plan,
@@ -59,8 +56,7 @@ fn killed_run(out: &Path, landed: u64, more: u64) {
     let cut = landed..landed + more;
     drive_range(plan, cut, &mut sim, &mut babbler, &mut sink, &mut |_, _| {}).unwrap();
     let state = sim.state();
-    let names = sim.model().joint_names();
-    sink.state(state.stamp_ns, step_messages(&state, &names))
+    sink.state(state.stamp_ns, sim.step_messages(&state))
         .unwrap();
     // No finish, no flush: the process is gone.
     std::mem::forget(sink);

@@ -1,5 +1,6 @@
 //! Kinematics of the iiwa arm straight from its URDF: forward kinematics of every link and
-//! of the `ef` frame, the geometric Jacobian, and damped-least-squares inverse kinematics.
+//! of the `ef` frame, the arm's tf tree, the geometric Jacobian, and damped-least-squares
+//! inverse kinematics.
 //!
 //! The simulator, the babbler (reaching for the cube) and the dataset builder all need the
 //! same arm model; building it from the URDF file keeps one source of truth, and errors
@@ -7,6 +8,7 @@
 
 mod error;
 mod forward;
+mod frames;
 mod ik;
 mod model;
 

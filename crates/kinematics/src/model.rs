@@ -37,6 +37,7 @@ pub(crate) enum Motion {
 pub(crate) struct Segment {
     pub(crate) origin: Isometry3<f64>,
     pub(crate) motion: Motion,
+    pub(crate) parent_link: String,
     pub(crate) child_link: String,
 }
 
@@ -148,6 +149,7 @@ impl ArmModel {
             segments.push(Segment {
                 origin: isometry(&joint.origin),
                 motion,
+                parent_link: joint.parent.link.clone(),
                 child_link: joint.child.link.clone(),
             });
         }

@@ -161,7 +161,7 @@ mod tests {
     #[test]
     fn the_graphs_own_messages_are_well_formed() {
         let names = ["a", "b", "c", "d", "e", "f", "g"];
-        let m = step_messages(&state(), &names);
+        let m = step_messages(&state(), &names, Vec::new());
         m.joint_states.well_formed().unwrap();
         m.ef_pose.well_formed().unwrap();
         m.object_pose.well_formed().unwrap();
@@ -190,14 +190,14 @@ mod tests {
         let mut action = action_message(&state(), &keep(), 0);
         action.magnet = 7;
         assert!(command_of(&action).unwrap_err().contains("magnet is 7"));
-        let mut js = step_messages(&state(), &["j"; 7]).joint_states;
+        let mut js = step_messages(&state(), &["j"; 7], Vec::new()).joint_states;
         js.position.push(0.0);
         assert!(
             js.well_formed()
                 .unwrap_err()
                 .contains("position has 8 values")
         );
-        let mut pose = step_messages(&state(), &["j"; 7]).ef_pose;
+        let mut pose = step_messages(&state(), &["j"; 7], Vec::new()).ef_pose;
         pose.pose.orientation.w = 2.0;
         assert!(pose.well_formed().unwrap_err().contains("norm"));
     }

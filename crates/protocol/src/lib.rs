@@ -17,6 +17,7 @@ pub mod experiment;
 pub mod graph;
 pub mod identity;
 pub mod join;
+pub mod markers;
 pub mod messages;
 pub mod scene;
 pub mod step;
@@ -28,8 +29,10 @@ pub use experiment::{Experiment, Profile, RunPlan, babbler_seed, bag_keys, sim_s
 pub use graph::{GraphSpec, NodeDecl, ParamDecl, ParamDefault, graph};
 pub use identity::{Gid, Origin, Quarantine, QuarantineCounts, Trusted, WriterDirectory};
 pub use join::{JoinCounts, Refusal, StepJoiner, StepParts, fill};
+pub use markers::{markers_key, scene_markers};
 pub use messages::{
-    StateFromMessagesError, StepMessages, action_message, state_from_messages, step_messages,
+    FrameTransform, LatchedMessages, StateFromMessagesError, StepMessages, action_message,
+    state_from_messages, static_tf_message, step_messages,
 };
 pub use scene::Scene;
 pub use step::{ARM_DOF, Command, SimState};

@@ -12,10 +12,11 @@ use causal_arm_msgs::geometry_msgs::msg::{
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
-use causal_arm_msgs::std_msgs::msg::{ColorRGBA, Header};
+use causal_arm_msgs::std_msgs::msg::{ColorRGBA, Header, String as RosString};
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use nalgebra::Isometry3;
 
+use crate::scene::Scene;
 use crate::step::{ARM_DOF, Command, SimState};
 use crate::topics::{self, frames, ns_from_time, time_from_ns};
 
@@ -63,10 +64,22 @@ fn pose_of(iso: &Isometry3<f64>) -> Pose {
     }
 }
 
-fn transform(stamp: &Time, child: &str, iso: &Isometry3<f64>) -> TransformStamped {
+/// One edge of the tf tree: where `child` is in `parent`'s frame. The arm model makes them
+/// from the URDF (one per joint); the messages below stamp them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameTransform {
+    /// Parent frame (the joint's parent link).
+    pub parent: String,
+    /// Child frame (the joint's child link).
+    pub child: String,
+    /// The child's pose in the parent's frame.
+    pub pose: Isometry3<f64>,
+}
+
+fn transform(stamp: &Time, parent: &str, child: &str, iso: &Isometry3<f64>) -> TransformStamped {
     let p = pose_of(iso);
     TransformStamped {
-        header: header(stamp, frames::WORLD),
+        header: header(stamp, parent),
         child_frame_id: child.to_owned(),
         transform: Transform {
             translation: Vector3 {
@@ -79,9 +92,45 @@ fn transform(stamp: &Time, child: &str, iso: &Isometry3<f64>) -> TransformStampe
     }
 }
 
+fn tf_message(stamp: &Time, frames: &[FrameTransform]) -> TFMessage {
+    TFMessage {
+        transforms: frames
+            .iter()
+            .map(|f| transform(stamp, &f.parent, &f.child, &f.pose))
+            .collect(),
+    }
+}
+
+/// What a run publishes once, latched, before its first step (`topics::LATCHED`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LatchedMessages {
+    /// `/robot_description`: the URDF text.
+    pub robot_description: RosString,
+    /// `/tf_static`: see [`static_tf_message`].
+    pub tf_static: TFMessage,
+}
+
+/// `/tf_static` of a run, stamped at sim time 0 as robot_state_publisher stamps it at
+/// start: the arm's fixed joints (`ArmModel::fixed_frames`) and world → table top.
+pub fn static_tf_message(arm_fixed_frames: &[FrameTransform], scene: &Scene) -> TFMessage {
+    let mut frames = arm_fixed_frames.to_vec();
+    frames.push(FrameTransform {
+        parent: frames::WORLD.to_owned(),
+        child: frames::TABLE.to_owned(),
+        pose: scene.table_pose(),
+    });
+    tf_message(&time_from_ns(0), &frames)
+}
+
 /// The messages the simulator publishes for `state`; `joint_names` are the arm model's
-/// actuated joints in chain order (`ArmModel::joint_names`).
-pub fn step_messages(state: &SimState, joint_names: &[&str]) -> StepMessages {
+/// actuated joints in chain order (`ArmModel::joint_names`) and `arm_frames` its revolute
+/// joints' transforms at the state's joint values (`ArmModel::moving_frames`), which `/tf`
+/// carries beside world → object.
+pub fn step_messages(
+    state: &SimState,
+    joint_names: &[&str],
+    mut arm_frames: Vec<FrameTransform>,
+) -> StepMessages {
     let stamp = time_from_ns(state.stamp_ns);
     StepMessages {
         joint_states: JointState {
@@ -116,11 +165,13 @@ pub fn step_messages(state: &SimState, joint_names: &[&str]) -> StepMessages {
         clock: Clock {
             clock: stamp.clone(),
         },
-        tf: TFMessage {
-            transforms: vec![
-                transform(&stamp, frames::EF, &state.ef_pose),
-                transform(&stamp, frames::OBJECT, &state.cube_pose),
-            ],
+        tf: {
+            arm_frames.push(FrameTransform {
+                parent: frames::WORLD.to_owned(),
+                child: frames::OBJECT.to_owned(),
+                pose: state.cube_pose,
+            });
+            tf_message(&stamp, &arm_frames)
         },
     }
 }
@@ -227,7 +278,7 @@ pub fn action_message(state: &SimState, command: &Command, step_in_episode: u64)
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use nalgebra::{Translation3, UnitQuaternion};
 
@@ -242,7 +293,7 @@ mod tests {
     ];
 
     /// A state as the simulator could report it after a few steps, built by hand.
-    fn state() -> SimState {
+    pub(crate) fn state() -> SimState {
         SimState {
             stamp_ns: 1_041_666_667,
             step: 25,
@@ -267,13 +318,33 @@ mod tests {
     #[test]
     fn messages_round_trip_to_the_same_state() {
         let state = state();
-        let m = step_messages(&state, &JOINTS);
+        let link = FrameTransform {
+            parent: "iiwa_link_0".into(),
+            child: "iiwa_link_1".into(),
+            pose: Isometry3::translation(0.0, 0.0, 0.1575),
+        };
+        let m = step_messages(&state, &JOINTS, vec![link]);
         assert_eq!(m.joint_states.name[6], "iiwa_joint_7");
         assert_eq!(m.clock.clock, time_from_ns(state.stamp_ns));
         assert_eq!(m.ef_pose.header.frame_id, frames::WORLD);
         assert_eq!(m.object_color.header.frame_id, frames::OBJECT);
-        let children: Vec<_> = m.tf.transforms.iter().map(|t| &t.child_frame_id).collect();
-        assert_eq!(children, [frames::EF, frames::OBJECT]);
+        let edges: Vec<_> =
+            m.tf.transforms
+                .iter()
+                .map(|t| (t.header.frame_id.as_str(), t.child_frame_id.as_str()))
+                .collect();
+        assert_eq!(
+            edges,
+            [
+                ("iiwa_link_0", "iiwa_link_1"),
+                (frames::WORLD, frames::OBJECT)
+            ]
+        );
+        assert_eq!(m.tf.transforms[0].transform.translation.z, 0.1575);
+        assert_eq!(
+            m.tf.transforms[1].header.stamp,
+            time_from_ns(state.stamp_ns)
+        );
         let back = state_from_messages(
             &m.joint_states,
             &m.ef_pose,

@@ -10,6 +10,8 @@ pub const TABLE_TOP_Z: f64 = 0.20;
 pub const TABLE_CENTER: [f64; 2] = [0.58, 0.0];
 /// Half extents of the table top (x, y), m.
 pub const TABLE_HALF_EXTENTS: [f64; 2] = [0.20, 0.30];
+/// Thickness of the table top, m.
+pub const TABLE_THICKNESS: f64 = 0.04;
 /// Edge length of the cube, m.
 pub const CUBE_SIZE: f64 = 0.05;
 /// How far the cube's centre may be from its resting height and still count as resting on
@@ -44,6 +46,12 @@ impl Default for Scene {
 }
 
 impl Scene {
+    /// Pose of the table top's centre in the world (the `table_top` frame).
+    pub fn table_pose(&self) -> nalgebra::Isometry3<f64> {
+        let [x, y] = self.table_center;
+        nalgebra::Isometry3::translation(x, y, self.table_top_z - TABLE_THICKNESS / 2.0)
+    }
+
     /// A cube centred at `cube` (x, y, z, m) rests on the table top: its centre is half an
     /// edge above the top (within [`RESTING_TOLERANCE`]) and over the table. Whether the
     /// magnet holds it is the caller's to check.

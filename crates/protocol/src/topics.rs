@@ -18,9 +18,16 @@ pub const OBJECT_COLOR: &str = "/object/color";
 pub const MAGNET_STATE: &str = "/magnet/state";
 /// `rosgraph_msgs/msg/Clock`.
 pub const CLOCK: &str = "/clock";
-/// `tf2_msgs/msg/TFMessage`: world→ef and world→object (arm links come from
-/// `/joint_states` + `/robot_description` through robot_state_publisher, as usual).
+/// `tf2_msgs/msg/TFMessage`, every step: each revolute joint's parent link → child link
+/// at the step's joint values (what robot_state_publisher would publish) and world → object.
 pub const TF: &str = "/tf";
+/// `tf2_msgs/msg/TFMessage`, latched: the fixed joints (world → base, flange → magnet →
+/// ef) and world → table top. With `/tf` every frame has exactly one parent.
+pub const TF_STATIC: &str = "/tf_static";
+/// `visualization_msgs/msg/MarkerArray`: table, cube and magnet for RViz and Foxglove
+/// (`markers::scene_markers`). The simulator publishes it when it changes; bags hold it
+/// every step, so a viewer seeking anywhere draws the scene.
+pub const SCENE_MARKERS: &str = "/scene/markers";
 /// `std_msgs/msg/String`, latched.
 pub const ROBOT_DESCRIPTION: &str = "/robot_description";
 /// `causal_arm_msgs/msg/Action` from the babbler.
@@ -43,7 +50,7 @@ pub const RECORDED_STEP: [&str; 8] = [
 ];
 
 /// Every topic of the graph.
-pub const ALL: [&str; 10] = [
+pub const ALL: [&str; 12] = [
     JOINT_STATES,
     EF_POSE,
     OBJECT_POSE,
@@ -51,20 +58,28 @@ pub const ALL: [&str; 10] = [
     MAGNET_STATE,
     CLOCK,
     TF,
+    TF_STATIC,
+    SCENE_MARKERS,
     ROBOT_DESCRIPTION,
     ACTION,
     RECORDER_ACK,
 ];
+
+/// The latched topics of a run: published once before the first step, recorded once at
+/// sim time 0, kept by a resumed bag.
+pub const LATCHED: [&str; 2] = [ROBOT_DESCRIPTION, TF_STATIC];
 
 /// Frame names used in headers and /tf.
 pub mod frames {
     /// Fixed world frame (the URDF root).
     pub const WORLD: &str = "world";
     /// Tool tip: the tool frame whose pose the experiments record (the link the arm
-    /// model's kinematic chain ends at).
+    /// model's kinematic chain ends at; in tf a child of the `magnet` link).
     pub const EF: &str = "ef";
     /// The cube.
     pub const OBJECT: &str = "object";
+    /// Centre of the table top (the link of `urdf/table.urdf`).
+    pub const TABLE: &str = "table_top";
 }
 
 /// ROS time from nanoseconds of sim time.

@@ -30,7 +30,11 @@ pub use config::{LinkCylinders, MAGNET_LINK, SimConfig};
 
 use ::nalgebra::Isometry3;
 use causal_arm_kinematics::{ArmModel, KinematicsError};
-use causal_arm_protocol::{ARM_DOF, Command, SimState, frames};
+use causal_arm_msgs::std_msgs::msg::String as RosString;
+use causal_arm_protocol::{
+    ARM_DOF, Command, LatchedMessages, SimState, StepMessages, frames, static_tf_message,
+    step_messages,
+};
 use rand::rngs::StdRng;
 use rapier3d::prelude::{PhysicsWorld, RigidBodyHandle};
 use thiserror::Error;
@@ -198,6 +202,27 @@ impl Simulator {
     /// The configuration in use.
     pub fn config(&self) -> &SimConfig {
         &self.config
+    }
+
+    /// The messages a simulator publishes for `state` (one of this simulator's), `/tf`
+    /// with the arm's revolute joints at the state's joint values.
+    pub fn step_messages(&self, state: &SimState) -> StepMessages {
+        let frames = self
+            .model
+            .moving_frames(&state.joint_positions)
+            .expect("the arm model has ARM_DOF joints (checked when it was built)");
+        step_messages(state, &self.model.joint_names(), frames)
+    }
+
+    /// What the run publishes once, latched: the URDF the arm was built from and
+    /// `/tf_static` (the arm's fixed joints and the table of this configuration).
+    pub fn latched_messages(&self) -> LatchedMessages {
+        LatchedMessages {
+            robot_description: RosString {
+                data: causal_arm_kinematics::EMBEDDED_IIWA_URDF.to_owned(),
+            },
+            tf_static: static_tf_message(&self.model.fixed_frames(), &self.config.scene()),
+        }
     }
 
     /// Name of the tool frame reported as `ef_pose`.

@@ -123,13 +123,14 @@ fn world_with_floor_and_table(config: &SimConfig) -> PhysicsWorld {
     );
     let [cx, cy] = config.table_center;
     let [hx, hy] = config.table_half_extents;
+    let hz = (causal_arm_protocol::scene::TABLE_THICKNESS / 2.0) as f32;
     world.insert(
         RigidBodyBuilder::fixed().translation(Vector::new(
             cx as f32,
             cy as f32,
-            config.table_top_z as f32 - 0.02,
+            config.table_top_z as f32 - hz,
         )),
-        ColliderBuilder::cuboid(hx as f32, hy as f32, 0.02).friction(config.friction as f32),
+        ColliderBuilder::cuboid(hx as f32, hy as f32, hz).friction(config.friction as f32),
     );
 
     world

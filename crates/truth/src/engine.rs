@@ -7,7 +7,7 @@ use std::time::Instant;
 use causal_arm_dataset::{
     Context, ContextState, action_names, angular_features, state_features, state_names, wrap_angle,
 };
-use causal_arm_protocol::{Command, Experiment, SimState, sim_seed, step_messages};
+use causal_arm_protocol::{Command, Experiment, SimState, sim_seed};
 use causal_arm_sim::{SimConfig, Simulator};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -47,7 +47,6 @@ impl Setup<'_> {
         index: usize,
         first: &Command,
     ) -> Result<Vec<f64>, TruthError> {
-        let joint_names = snapshot.model().joint_names();
         let mut sim = snapshot.clone();
         let mut out = Vec::with_capacity(self.plan.horizon * self.n_state);
         for h in 0..self.plan.horizon {
@@ -59,7 +58,7 @@ impl Setup<'_> {
             let state = sim.step(command)?;
             out.extend(state_features(
                 self.trace.experiment,
-                &step_messages(&state, &joint_names),
+                &sim.step_messages(&state),
             ));
         }
         Ok(out)

@@ -13,8 +13,9 @@ use anyhow::bail;
 use causal_arm_datagen::{BagSink, StepSink, validate};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
+use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{RosArgs, RosNode, qos};
-use causal_arm_protocol::{StepJoiner, time_from_ns, topics};
+use causal_arm_protocol::{LatchedMessages, StepJoiner, time_from_ns, topics};
 
 use crate::feed::{drain_or_wait, refusal_summary};
 use crate::parts::{RecordParts, record_feeds};
@@ -36,6 +37,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let screen = Rc::new(Screen::new(&mut node)?);
     let feeds = record_feeds(&mut node, &screen, &qos::recorded())?;
     let description = node.subscription::<RosString>(topics::ROBOT_DESCRIPTION, qos::latched())?;
+    let tf_static = node.subscription::<TFMessage>(topics::TF_STATIC, qos::latched())?;
     let ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
 
     let start = run.options.start_step;
@@ -49,8 +51,9 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     };
     let total = run.options.plan.total_steps();
     let mut joiner = StepJoiner::<RecordParts>::new();
-    // A resumed bag already holds the description.
-    let mut have_description = start > 0;
+    // A resumed bag already holds the latched messages.
+    let mut have_latched = start > 0;
+    let (mut got_description, mut got_tf_static) = (None, None);
     let mut written = start;
     let mut last_activity = Instant::now();
     let mut acked = None;
@@ -58,13 +61,24 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let mut result = Ok(());
     while written < total && !stop.load(Ordering::SeqCst) {
         let mut arrived = drain_or_wait(&feeds, &mut joiner, Duration::from_millis(100));
-        if !have_description && let Ok(Some((d, _))) = description.take() {
-            sink.robot_description(&d)?;
-            have_description = true;
-            arrived = true;
+        if !have_latched {
+            if let Ok(Some((d, _))) = description.take() {
+                got_description = Some(d);
+            }
+            if let Ok(Some((t, _))) = tf_static.take() {
+                got_tf_static = Some(t);
+            }
+            if let (Some(description), Some(tf_static)) = (&got_description, &got_tf_static) {
+                sink.latched(&LatchedMessages {
+                    robot_description: description.clone(),
+                    tf_static: tf_static.clone(),
+                })?;
+                have_latched = true;
+                arrived = true;
+            }
         }
         // Older parts may still be in flight on another topic: write strictly in order.
-        while have_description && let Some((stamp, parts)) = joiner.pop_complete(true) {
+        while have_latched && let Some((stamp, parts)) = joiner.pop_complete(true) {
             let (messages, action) = parts.into_step().expect("complete");
             sink.state(stamp, messages)?;
             sink.action(stamp, &action)?;

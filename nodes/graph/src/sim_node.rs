@@ -13,15 +13,18 @@ use anyhow::bail;
 use causal_arm_datagen::{
     CommandSource, GenerateError, StepSink, drive_range, fast_forward, validate,
 };
-use causal_arm_kinematics::EMBEDDED_IIWA_URDF;
 use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
+use causal_arm_msgs::visualization_msgs::msg::MarkerArray;
 use causal_arm_node::{RosArgs, RosNode, qos};
-use causal_arm_protocol::{Command, SimState, StepMessages, command_of, ns_from_time, topics};
+use causal_arm_protocol::{
+    Command, LatchedMessages, Scene, SimState, StepMessages, command_of, markers_key, ns_from_time,
+    scene_markers, topics,
+};
 use ros2_client::{Publisher, Subscription};
 
 use crate::feed::LOGGED;
@@ -48,6 +51,11 @@ struct DdsStatePublisher {
     clock: Publisher<Clock>,
     tf: Publisher<TFMessage>,
     description: Publisher<RosString>,
+    tf_static: Publisher<TFMessage>,
+    /// Published when what they show changes (latched); bags hold them every step.
+    markers: Publisher<MarkerArray>,
+    scene: Scene,
+    shown: Option<([u32; 3], bool, bool)>,
     /// `Some` when the recorder paces the run.
     acks: Option<AckFeed>,
     stop: Arc<AtomicBool>,
@@ -96,6 +104,7 @@ impl DdsStatePublisher {
         node: &mut RosNode,
         paced_by: Option<AckWindow>,
         screen: &Rc<Screen>,
+        scene: Scene,
     ) -> anyhow::Result<Self> {
         let recorded = qos::recorded();
         let acks = match paced_by {
@@ -116,6 +125,10 @@ impl DdsStatePublisher {
             clock: node.publisher(topics::CLOCK, recorded.clone())?,
             tf: node.publisher(topics::TF, recorded)?,
             description: node.publisher(topics::ROBOT_DESCRIPTION, qos::latched())?,
+            tf_static: node.publisher(topics::TF_STATIC, qos::latched())?,
+            markers: node.publisher(topics::SCENE_MARKERS, qos::latched())?,
+            scene,
+            shown: None,
             acks,
             stop: stop_flag(),
             last_stamp: 0,
@@ -192,12 +205,20 @@ impl AckFeed {
 }
 
 impl StepSink for DdsStatePublisher {
-    fn robot_description(&mut self, urdf: &RosString) -> Result<(), GenerateError> {
-        publish(&self.description, urdf.clone(), topics::ROBOT_DESCRIPTION)
+    fn latched(&mut self, m: &LatchedMessages) -> Result<(), GenerateError> {
+        let description = m.robot_description.clone();
+        publish(&self.description, description, topics::ROBOT_DESCRIPTION)?;
+        publish(&self.tf_static, m.tf_static.clone(), topics::TF_STATIC)
     }
 
     fn state(&mut self, stamp_ns: u64, m: StepMessages) -> Result<(), GenerateError> {
         self.wait_for_window(stamp_ns)?;
+        let shows = markers_key(&m);
+        if self.shown != Some(shows) {
+            let markers = scene_markers(&m, &self.scene);
+            publish(&self.markers, markers, topics::SCENE_MARKERS)?;
+            self.shown = Some(shows);
+        }
         publish(&self.joint_states, m.joint_states, topics::JOINT_STATES)?;
         publish(&self.ef_pose, m.ef_pose, topics::EF_POSE)?;
         publish(&self.object_pose, m.object_pose, topics::OBJECT_POSE)?;
@@ -338,12 +359,11 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         window
     });
     let screen = Rc::new(Screen::new(&mut node)?);
-    let mut states = DdsStatePublisher::new(&mut node, pacing, &screen)?;
+    let scene = run.options.sim.scene();
+    let mut states = DdsStatePublisher::new(&mut node, pacing, &screen, scene)?;
     let mut commands = DdsCommands::new(&mut node, Rc::clone(&screen), timeout, stop.clone())?;
     let (mut sim, _) = fast_forward(&run.options, start)?;
-    states.robot_description(&RosString {
-        data: EMBEDDED_IIWA_URDF.to_owned(),
-    })?;
+    states.latched(&sim.latched_messages())?;
 
     // Wait until every reader the graph declares (the babbler, the recorder) has matched
     // every state topic, then let their side settle.

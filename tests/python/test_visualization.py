@@ -1,10 +1,17 @@
-"""The bag's tf tree against PyBullet: /tf_static (fixed joints, table) and /tf (every
-revolute joint, the cube) composed link by link equal PyBullet's link frames for the same
-URDF and the recorded joint angles, and every frame has exactly one parent, as with
-robot_state_publisher beside a simulator. rosbags reads the tf messages, PyBullet places
-the links: neither is our code."""
+"""What a viewer (RViz, Foxglove, Lichtblick) needs from a bag, checked with independent
+readers:
+- the tf tree against PyBullet: /tf_static (fixed joints, table) and /tf (every revolute
+  joint, the cube) composed link by link equal PyBullet's link frames for the same URDF and
+  the recorded joint angles, and every frame has exactly one parent, as with
+  robot_state_publisher beside a simulator (rosbags reads the messages, PyBullet places the
+  links: neither is our code);
+- the scene markers, decoded by mcap-ros2 from the bag's own schema, show each step's cube
+  colour and magnet state in frames the tf tree has;
+- the committed Foxglove layout names only topics, fields and frames the bag has."""
 
+import json
 import pathlib
+import re
 
 import numpy as np
 import pybullet as p
@@ -129,3 +136,70 @@ def test_the_composed_tf_chain_equals_pybullet_link_poses(exp2_bag, pybullet_arm
     top = p.getLinkState(table, 0, physicsClientId=client)[4]
     (table_edge,) = [e for e in static_edges if e[1] == "table_top"]
     assert table_edge[0] == "world" and np.allclose(table_edge[2][0], top, atol=1e-6)
+
+
+def test_scene_markers_show_each_steps_cube_colour_and_magnet(exp2_bag):
+    from mcap_ros2.reader import read_ros2_messages
+
+    topics = _read(exp2_bag)
+    colours = {t: m.color for t, m in topics["/object/color"]}
+    magnets = {t: m for t, m in topics["/magnet/state"]}
+    (mcap_file,) = pathlib.Path(exp2_bag).glob("*.mcap")
+    arrays = [(m.log_time_ns, m.ros_msg) for m in read_ros2_messages(str(mcap_file), topics=["/scene/markers"])]
+    assert len(arrays) == 500, "one array per step"
+    tf_frames = {"world"} | {t.child_frame_id for _, msg in topics["/tf_static"] + topics["/tf"][:1]
+                             for t in msg.transforms}
+    labels = set()
+    for t, array in arrays:
+        by_ns = {(k.ns, k.id): k for k in array.markers}
+        assert set(by_ns) == {("table", 0), ("object", 0), ("magnet", 0), ("magnet", 1)}
+        assert all(k.header.frame_id in tf_frames and k.frame_locked for k in array.markers)
+        cube, c = by_ns[("object", 0)], colours[t]
+        assert (cube.type, cube.color.r, cube.color.g, cube.color.b) == (1, c.r, c.g, c.b)
+        assert cube.scale.x == cube.scale.y == cube.scale.z == 0.05
+        table = by_ns[("table", 0)]
+        assert (table.header.frame_id, table.scale.x, table.scale.y) == ("table_top", 0.4, 0.6)
+        mag = magnets[t]
+        want = "holding" if mag.holding else "on" if mag.on else "off"
+        assert by_ns[("magnet", 1)].text == f"magnet: {want}"
+        labels.add(want)
+    assert labels == {"off", "on", "holding"}, "the episode switches the magnet and picks the cube"
+
+
+def _resolve(message, path):
+    """The value at a Foxglove message path tail such as `.pose.position.z` or `.position[3]`."""
+    value = message
+    for name, index in re.findall(r"\.(\w+)(?:\[(\d+)\])?", path):
+        value = getattr(value, name)
+        if index:
+            value = value[int(index)]
+    return value
+
+
+def test_the_foxglove_layout_names_what_the_bag_has(exp2_bag, repo_root):
+    layout = json.loads((repo_root / "docs" / "foxglove" / "causal_arm.json").read_text())
+    topics = _read(exp2_bag)
+    panels = layout["configById"]
+
+    def placed(node):
+        return [node] if isinstance(node, str) else placed(node["first"]) + placed(node["second"])
+
+    assert sorted(placed(layout["layout"])) == sorted(panels), "every panel is placed, once"
+    scene = panels["3D!scene"]
+    urdf = [layer for layer in scene["layers"].values() if layer["layerId"] == "foxglove.Urdf"]
+    assert [(u["sourceType"], u["topic"]) for u in urdf] == [("topic", "/robot_description")]
+    assert topics["/robot_description"][0][1].data.startswith("<?xml")
+    for topic in scene["topics"]:
+        assert topic in topics, topic
+    assert scene["followTf"] == "world"
+    plotted = 0
+    for panel_id, config in panels.items():
+        if not panel_id.startswith("Plot!"):
+            continue
+        for entry in config["paths"]:
+            topic, tail = re.match(r"(/[\w/]+?)(\..*)$", entry["value"]).groups()
+            assert topic in topics, entry["value"]
+            value = _resolve(topics[topic][0][1], tail)
+            assert isinstance(value, (int, float, bool, np.number)), (entry["value"], value)
+            plotted += 1
+    assert plotted == 7 + 8 + 3

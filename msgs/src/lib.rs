@@ -564,8 +564,8 @@ mod tests {
         assert!(visit_message_type("std_msgs/Header", Definition).is_ok());
         assert!(visit_message_type("causal_arm_msgs/PredictNextState_Request", Definition).is_ok());
         assert!(visit_message_type("causal_arm_msgs/srv/PredictNextState", Definition).is_err());
-        assert_eq!(service_types().len(), 5);
-        assert_eq!(message_types().len(), 34);
+        assert_eq!(service_types().len(), 11);
+        assert_eq!(message_types().len(), 60);
         let mut trailing = to_cdr(&h).unwrap();
         trailing.extend_from_slice(&[0; 8]);
         assert!(

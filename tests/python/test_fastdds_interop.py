@@ -217,3 +217,19 @@ def test_every_endpoint_announces_its_type_hash_in_user_data(peer, causal_arm_bi
             b"typehash=RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e;"
     assert endpoints[("writer", "rq/trainer/model_infoRequest")][1] == \
         endpoints[("reader", "rr/trainer/model_infoReply")][1], "both halves announce the service's hash"
+    # ros2-client's own endpoints too (patched): discovery info, rosout, parameter events,
+    # the clock reader (now typed rosgraph_msgs/Clock as ROS 2 publishes it) and every
+    # parameter service; the values are those Jazzy publishes.
+    missing = sorted(key for key, (_, user_data) in endpoints.items() if not user_data.startswith(b"typehash=RIHS01_"))
+    assert not missing, f"endpoints without a type hash: {missing}"
+    published = {
+        ("writer", "ros_discovery_info"): "91a0593bacdcc50ea9bdcf849a938b128412cc1ea821245c663bcd26f83c295e",
+        ("writer", "rt/rosout"): "e28ce254ca8abc06abf92773b74602cdbf116ed34fbaf294fb9f81da9f318eac",
+        ("writer", "rt/parameter_events"): "043e627780fcad87a22d225bc2a037361dba713fca6a6b9f4b869a5aa0393204",
+        ("reader", "rt/clock"): "692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564",
+        ("reader", "rq/causal_arm_topic_echo/get_parametersRequest"):
+            "bf9803d5c74cf989a5de3e0c2e99444599a627c7ff75f97b8c05b01003675cbc",
+    }
+    for key, hex_hash in published.items():
+        assert endpoints[key][1] == f"typehash=RIHS01_{hex_hash};".encode(), (key, endpoints[key])
+    assert endpoints[("reader", "rt/clock")][0] == "rosgraph_msgs::msg::dds_::Clock_"

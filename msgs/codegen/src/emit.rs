@@ -330,11 +330,13 @@ impl<'a> Registry<'a> {
         out.push_str("}\n\n");
     }
 
-    /// `Default` by hand, for structs with .msg defaults or arrays serde cannot default.
+    /// `Default` by hand, for structs with .msg defaults or arrays serde cannot default
+    /// (a .msg default may equal the type's own, e.g. `bool read_only false`, hence the
+    /// `allow`).
     fn emit_default(&mut self, out: &mut String, name: &str, fields: &[Field]) {
         let _ = writeln!(
             out,
-            "impl ::std::default::Default for {name} {{\n    fn default() -> Self {{\n        Self {{"
+            "#[allow(clippy::derivable_impls)]\nimpl ::std::default::Default for {name} {{\n    fn default() -> Self {{\n        Self {{"
         );
         for f in fields {
             let (ident, _) = field_ident(&f.name);

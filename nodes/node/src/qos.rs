@@ -89,6 +89,59 @@ pub fn with_type_hash(qos: QosProfile, type_hash: &str) -> QosProfile {
 mod tests {
     use super::*;
 
+    /// ros2-client's own endpoints (patched to announce their hashes) carry the hashes our
+    /// generator computes from the vendored Jazzy definitions.
+    #[test]
+    fn ros2_clients_builtin_endpoints_announce_our_hashes() {
+        use causal_arm_msgs::{RosMessage, RosService, rcl_interfaces, rmw_dds_common};
+        use ros2_client::builtin_topics as builtin;
+        let pairs = [
+            (
+                builtin::ros_discovery::TYPE_HASH,
+                rmw_dds_common::msg::ParticipantEntitiesInfo::TYPE_HASH,
+            ),
+            (
+                builtin::rosout::TYPE_HASH,
+                rcl_interfaces::msg::Log::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_events::TYPE_HASH,
+                rcl_interfaces::msg::ParameterEvent::TYPE_HASH,
+            ),
+            (
+                builtin::clock::TYPE_HASH,
+                causal_arm_msgs::rosgraph_msgs::msg::Clock::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::GET_PARAMETERS,
+                rcl_interfaces::srv::GetParameters::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::GET_PARAMETER_TYPES,
+                rcl_interfaces::srv::GetParameterTypes::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::SET_PARAMETERS,
+                rcl_interfaces::srv::SetParameters::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::SET_PARAMETERS_ATOMICALLY,
+                rcl_interfaces::srv::SetParametersAtomically::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::LIST_PARAMETERS,
+                rcl_interfaces::srv::ListParameters::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::DESCRIBE_PARAMETERS,
+                rcl_interfaces::srv::DescribeParameters::TYPE_HASH,
+            ),
+        ];
+        for (theirs, ours) in pairs {
+            assert_eq!(theirs, ours);
+        }
+    }
+
     #[test]
     fn type_hash_user_data_is_rmws_text() {
         let q = with_type_hash(default_reliable(), "RIHS01_ab");

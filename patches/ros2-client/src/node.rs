@@ -18,6 +18,7 @@ use rustdds::*;
 use crate::{
   action::*,
   action_msgs, builtin_interfaces,
+  builtin_topics::{clock, parameter_services, type_hash_user_data},
   context::{Context, DEFAULT_SUBSCRIPTION_QOS},
   entities_info::{NodeEntitiesInfo, ParticipantEntitiesInfo},
   error::{CreateError, CreateResult},
@@ -656,47 +657,52 @@ impl Node {
 
     let parameter_servers = if self.options.start_parameter_services {
       let service_mapping = ServiceMapping::Enhanced; //TODO: parameterize
+      let param_qos = |type_hash: &str| {
+        service_qos
+          .clone()
+          .user_data(type_hash_user_data(type_hash).value)
+      };
       let get_parameters_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "get_parameters").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "GetParameters"),
-        service_qos.clone(),
-        service_qos.clone(),
+        param_qos(parameter_services::GET_PARAMETERS),
+        param_qos(parameter_services::GET_PARAMETERS),
       )?;
       let get_parameter_types_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "get_parameter_types").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "GetParameterTypes"),
-        service_qos.clone(),
-        service_qos.clone(),
+        param_qos(parameter_services::GET_PARAMETER_TYPES),
+        param_qos(parameter_services::GET_PARAMETER_TYPES),
       )?;
       let set_parameters_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "set_parameters").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "SetParameters"),
-        service_qos.clone(),
-        service_qos.clone(),
+        param_qos(parameter_services::SET_PARAMETERS),
+        param_qos(parameter_services::SET_PARAMETERS),
       )?;
       let set_parameters_atomically_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "set_parameters_atomically").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "SetParametersAtomically"),
-        service_qos.clone(),
-        service_qos.clone(),
+        param_qos(parameter_services::SET_PARAMETERS_ATOMICALLY),
+        param_qos(parameter_services::SET_PARAMETERS_ATOMICALLY),
       )?;
       let list_parameters_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "list_parameters").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "ListParameters"),
-        service_qos.clone(),
-        service_qos.clone(),
+        param_qos(parameter_services::LIST_PARAMETERS),
+        param_qos(parameter_services::LIST_PARAMETERS),
       )?;
       let describe_parameters_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "describe_parameters").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "DescribeParameters"),
-        service_qos.clone(),
-        service_qos.clone(),
+        param_qos(parameter_services::DESCRIBE_PARAMETERS),
+        param_qos(parameter_services::DESCRIBE_PARAMETERS),
       )?;
 
       Some(ParameterServers {
@@ -713,8 +719,10 @@ impl Node {
 
     let clock_topic = self.create_topic(
       &Name::new("/", "clock").unwrap(),
-      MessageTypeName::new("builtin_interfaces", "Time"),
-      &DEFAULT_SUBSCRIPTION_QOS,
+      MessageTypeName::new("rosgraph_msgs", "Clock"),
+      &DEFAULT_SUBSCRIPTION_QOS
+        .clone()
+        .user_data(type_hash_user_data(clock::TYPE_HASH).value),
     )?;
 
     self.suppress_node_info_updates(false);

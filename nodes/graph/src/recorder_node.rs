@@ -16,11 +16,48 @@ use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::{LatchedMessages, StepJoiner, time_from_ns, topics};
+use ros2_client::Subscription;
 
 use crate::feed::{drain_or_wait, refusal_summary};
 use crate::parts::{RecordParts, record_feeds};
 use crate::screen::Screen;
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag};
+
+/// The run's latched topics: the bag gets them, together, before its first step.
+struct LatchedFeed {
+    description: Subscription<RosString>,
+    tf_static: Subscription<TFMessage>,
+    got_description: Option<RosString>,
+    got_tf_static: Option<TFMessage>,
+}
+
+impl LatchedFeed {
+    fn new(node: &mut RosNode) -> anyhow::Result<Self> {
+        Ok(Self {
+            description: node.subscription(topics::ROBOT_DESCRIPTION, qos::latched())?,
+            tf_static: node.subscription(topics::TF_STATIC, qos::latched())?,
+            got_description: None,
+            got_tf_static: None,
+        })
+    }
+
+    /// Both messages once both have arrived (each is taken as it comes).
+    fn take(&mut self) -> Option<LatchedMessages> {
+        if let Ok(Some((d, _))) = self.description.take() {
+            self.got_description = Some(d);
+        }
+        if let Ok(Some((t, _))) = self.tf_static.take() {
+            self.got_tf_static = Some(t);
+        }
+        match (&self.got_description, &self.got_tf_static) {
+            (Some(_), Some(_)) => Some(LatchedMessages {
+                robot_description: self.got_description.take()?,
+                tf_static: self.got_tf_static.take()?,
+            }),
+            _ => None,
+        }
+    }
+}
 
 /// Runs the recorder node until every step is written or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
@@ -36,8 +73,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let stop = stop_flag();
     let screen = Rc::new(Screen::new(&mut node)?);
     let feeds = record_feeds(&mut node, &screen, &qos::recorded())?;
-    let description = node.subscription::<RosString>(topics::ROBOT_DESCRIPTION, qos::latched())?;
-    let tf_static = node.subscription::<TFMessage>(topics::TF_STATIC, qos::latched())?;
+    let mut latched = LatchedFeed::new(&mut node)?;
     let ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
 
     let start = run.options.start_step;
@@ -53,7 +89,6 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let mut joiner = StepJoiner::<RecordParts>::new();
     // A resumed bag already holds the latched messages.
     let mut have_latched = start > 0;
-    let (mut got_description, mut got_tf_static) = (None, None);
     let mut written = start;
     let mut last_activity = Instant::now();
     let mut acked = None;
@@ -61,21 +96,10 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let mut result = Ok(());
     while written < total && !stop.load(Ordering::SeqCst) {
         let mut arrived = drain_or_wait(&feeds, &mut joiner, Duration::from_millis(100));
-        if !have_latched {
-            if let Ok(Some((d, _))) = description.take() {
-                got_description = Some(d);
-            }
-            if let Ok(Some((t, _))) = tf_static.take() {
-                got_tf_static = Some(t);
-            }
-            if let (Some(description), Some(tf_static)) = (&got_description, &got_tf_static) {
-                sink.latched(&LatchedMessages {
-                    robot_description: description.clone(),
-                    tf_static: tf_static.clone(),
-                })?;
-                have_latched = true;
-                arrived = true;
-            }
+        if !have_latched && let Some(messages) = latched.take() {
+            sink.latched(&messages)?;
+            have_latched = true;
+            arrived = true;
         }
         // Older parts may still be in flight on another topic: write strictly in order.
         while have_latched && let Some((stamp, parts)) = joiner.pop_complete(true) {

@@ -103,7 +103,10 @@ def test_our_service_call_reaches_a_fastdds_server_naming_its_reply_reader(peer,
             r = run_cli("service", "call", "/trainer/model_info", "--type", "causal_arm_msgs/srv/GetModelInfo",
                         "--json", json.dumps({"model": model}), "--timeout", "30",
                         env={"ROS_DOMAIN_ID": str(DOMAIN + 2), "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}, timeout=60)
-            assert r.returncode == 0, r.stderr[-2000:]
+            if r.returncode != 0:  # say what the Fast DDS side saw too
+                server.kill()
+                out, err = server.communicate()
+                pytest.fail(f"service call failed:\n{r.stderr[-2000:]}\nFast DDS server:\n{out[-1000:]}\n{err[-1000:]}")
             got = json.loads(r.stdout)
             assert got["success"] and got["message"] == reply.message and got["models"] == reply.models
             assert got["state_names"] == reply.state_names and got["metrics_json"] == reply.metrics_json

@@ -977,20 +977,6 @@ impl Writer {
   /// are not advertised: a HEARTBEAT advertising a sample whose fragments are
   /// still arriving made CycloneDDS acknowledge that sample at once, and it
   /// then never delivered it (seen with paced multi-MB service replies).
-  /// Whether `reader`, having just acknowledged without requesting anything,
-  /// lacks a sample whose DATA has already gone out (in push mode; otherwise
-  /// any sample we have, since readers fetch them after a HEARTBEAT). Samples
-  /// not pushed yet do not count: their DATA carries its own HEARTBEAT.
-  fn owes_heartbeat(&self, reader: &RtpsReaderProxy) -> bool {
-    let last = self.send_buffer.last_change_sequence_number();
-    let pushed = if self.push_mode {
-      last.min(self.last_sent)
-    } else {
-      last
-    };
-    reader.all_acked_before <= pushed
-  }
-
   fn advertised_last_sn(&self) -> SequenceNumber {
     let last = self.send_buffer.last_change_sequence_number();
     if self.push_mode && self.sample_cursor != SampleCursor::Fresh {
@@ -1347,14 +1333,11 @@ impl Writer {
           }
 
           // An ACKNACK that requests nothing although the reader has not acknowledged
-          // everything we have sent means the reader does not know what we have,
-          // typically a preemptive ACKNACK from a reader that matched us after our
-          // HEARTBEAT. Answer now instead of at the next heartbeat period. Samples
-          // not pushed yet do not count: their DATA carries its own HEARTBEAT, and a
-          // HEARTBEAT ahead of it made every reader of a steady stream NACK the
-          // sample about to arrive (one HEARTBEAT and one ACKNACK per reader per
-          // sample, and a needless repair).
-          if an.reader_sn_state.iter().next().is_none() && self.owes_heartbeat(reader_proxy) {
+          // everything means the reader does not know what we have, typically a
+          // preemptive ACKNACK from a reader that matched us after our HEARTBEAT.
+          // Answer now instead of at the next heartbeat period.
+          if an.reader_sn_state.iter().next().is_none() && reader_proxy.all_acked_before <= last_seq
+          {
             let hb_message = MessageBuilder::new()
               .ts_msg(self.endianness, Some(Timestamp::now()))
               .heartbeat_msg(
@@ -3211,34 +3194,6 @@ mod tests {
         false,
       );
       assert!(fragmented && matches!(progress, SendProgress::Complete));
-    }
-
-    // An ACKNACK that requests nothing is answered with a HEARTBEAT only when
-    // the reader lacks a sample already pushed: a steady stream's readers
-    // acknowledge while the next sample waits to be pushed, and a HEARTBEAT
-    // advertising it made each of them NACK it.
-    #[test]
-    fn empty_acknack_gets_a_heartbeat_only_for_pushed_samples() {
-      let mut f = Fixture::user(3, 8, None);
-      f.ack_nack(std::iter::empty(), 1); // preemptive: base 1, nothing received
-      assert!(
-        !f.writer.owes_heartbeat(f.reader_proxy()),
-        "nothing pushed yet: the DATA will carry its own HEARTBEAT"
-      );
-      f.writer.last_sent = SequenceNumber::new(2);
-      assert!(f.writer.owes_heartbeat(f.reader_proxy()), "samples 1..2 went out");
-      let acked_all_pushed = AckNack {
-        reader_id: f.reader_guid.entity_id,
-        writer_id: f.writer.my_guid.entity_id,
-        reader_sn_state: SequenceNumberSet::new_empty(SequenceNumber::new(3)),
-        count: 2,
-      };
-      f.writer
-        .handle_ack_nack(f.reader_guid.prefix, &AckSubmessage::AckNack(acked_all_pushed));
-      assert!(
-        !f.writer.owes_heartbeat(f.reader_proxy()),
-        "the reader has all that was pushed; sample 3 is still to go"
-      );
     }
 
     // A repeated ACKNACK count is a copy and changes nothing; a new count does.

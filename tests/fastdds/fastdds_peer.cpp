@@ -357,8 +357,14 @@ int run_call(Peer& peer, char** argv, Clock::time_point deadline) {
   SampleInfo info;
   while (answered.size() < requests.size()) {
     if (!take(replies, deadline, reply, info)) {
+      // Say which direction stalled: were the requests acknowledged by the server?
+      bool acked = writer->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(0, 0)) ==
+                   ReturnCode_t::RETCODE_OK;
       Peer::fail("timeout: " + std::to_string(answered.size()) + " of " +
-                 std::to_string(requests.size()) + " replies");
+                 std::to_string(requests.size()) + " replies (requests " +
+                 (acked ? "acknowledged" : "NOT all acknowledged") + " by the server; " +
+                 std::to_string(writer_matches(writer)) + " request readers and " +
+                 std::to_string(reader_matches(replies)) + " reply writers matched)");
     }
     const SampleIdentity& related = info.related_sample_identity;
     bool ours = related.writer_guid() == replies->guid() || related.writer_guid() == writer->guid();

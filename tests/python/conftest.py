@@ -11,6 +11,7 @@ import os
 import pathlib
 import signal
 import subprocess
+import tempfile
 
 import pytest
 
@@ -97,16 +98,22 @@ def private_netns_module():
 
 @contextlib.contextmanager
 def node_process(binary, ros_args, env):
-    """Runs a node binary (`BINARY --ros-args ROS_ARGS…`, output captured) for the duration
-    of the block, then stops it with SIGINT as a user would (killed after 10 s)."""
-    proc = subprocess.Popen([str(binary), "--ros-args", *map(str, ros_args)], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        yield proc
-    finally:
-        proc.send_signal(signal.SIGINT)
+    """Runs a node binary (`BINARY --ros-args ROS_ARGS…`) for the duration of the block, then
+    stops it with SIGINT as a user would (killed after 10 s).
+
+    Its stdout and stderr go to one temporary file, never to a pipe: a pipe nobody reads
+    fills at 64 KiB of log lines and then blocks the node's logging, so a long-lived node
+    that warned a lot would stop answering. `proc.log()` returns what it printed so far."""
+    with tempfile.NamedTemporaryFile("w+", prefix=f"{pathlib.Path(binary).name}-", suffix=".log") as log:
+        proc = subprocess.Popen([str(binary), "--ros-args", *map(str, ros_args)], env=env,
+                                stdout=log, stderr=subprocess.STDOUT, text=True)
+        proc.log = lambda: pathlib.Path(log.name).read_text(errors="replace")
         try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+            yield proc
+        finally:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()

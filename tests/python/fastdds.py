@@ -13,9 +13,12 @@ decodes a Fast DDS payload with the same class.
 
 import hashlib
 import os
+import queue
 import pathlib
 import shutil
 import subprocess
+import threading
+import time
 
 import pytest
 
@@ -57,17 +60,58 @@ def env(domain: int) -> dict:
     return dict(os.environ, ROS_DOMAIN_ID=str(domain))
 
 
-def call(peer, domain, service, request_cls, reply_cls, requests, timeout=60.0):
+def call(peer, domain, service, request_cls, reply_cls, requests, timeout=60.0, server=None):
     """Sends all requests at once from a Fast DDS client, as rmw_fastrtps does; returns the
-    decoded replies in request order (the peer matched each by related sample identity)."""
+    decoded replies in request order (the peer matched each by related sample identity).
+    With `server` (a `node_process`), a failure shows the end of that node's log too."""
     lines = "".join(enhanced_payload(r).hex() + "\n" for r in requests)
     r = subprocess.run([str(peer), "call", service, request_cls.__idl_typename__, reply_cls.__idl_typename__,
                         str(timeout)], input=lines, capture_output=True, text=True, env=env(domain),
                        timeout=timeout + 30)
-    assert r.returncode == 0, f"fastdds_peer call {service}: {r.stderr[-2000:]}"
+    server_log = f"\nserver log:\n{server.log()[-3000:]}" if server is not None else ""
+    assert r.returncode == 0, f"fastdds_peer call {service}: {r.stderr[-2000:]}{server_log}"
     replies = {}
     for line in r.stdout.splitlines():
         index, payload = line.split(" ")
         replies[int(index)] = from_enhanced(reply_cls, bytes.fromhex(payload))
     assert sorted(replies) == list(range(len(requests))), r.stdout[:200]
     return [replies[i] for i in range(len(requests))]
+
+
+def discover(peer, domain, required, timeout=60.0, linger=1.0) -> dict:
+    """Runs the peer's discovery listener until every (kind, topic) in `required` has been
+    announced (and `linger` seconds more, for the rest), or `timeout` seconds passed; returns {(kind, topic): (type, user_data)} for
+    every endpoint seen. Waiting for the set, not a fixed window, keeps a loaded machine's
+    slow discovery from passing for a missing announcement."""
+    proc = subprocess.Popen([str(peer), "discover", str(timeout)], env=env(domain),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    endpoints, pending = {}, set(required)
+    lines = queue.Queue()  # a thread reads the pipe: select() cannot see lines already buffered
+
+    def read_lines():
+        for line in proc.stdout:
+            lines.put(line)
+        lines.put(None)
+
+    threading.Thread(target=read_lines, daemon=True).start()
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline:
+            try:
+                line = lines.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                break
+            if line is None:
+                break
+            kind, topic, type_name, user_data = (line.rstrip("\n").split(" ") + [""])[:4]
+            endpoints[(kind, topic)] = (type_name, bytes.fromhex(user_data))
+            if (kind, topic) in pending:
+                pending.remove((kind, topic))
+                if not pending:  # all there: collect the rest for `linger` seconds
+                    deadline = min(deadline, time.monotonic() + linger)
+    finally:
+        proc.kill()
+        proc.wait()
+    err = proc.stderr.read()
+    assert not pending, f"not discovered within {timeout} s: {sorted(pending)}; seen: {sorted(endpoints)}; {err[-1000:]}"
+    return endpoints

@@ -374,9 +374,9 @@ def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply_to_fastdds(exp2,
     params = ["-p", f"model_dir:={d / 'models'}", "-p", f"bag:={d / 'bag'}", "-p", f"cache:={d / 'cache'}",
               "-p", f"samples:={NODE_SAMPLES}"]
     made = [deep_request(exp2, n) for n in (1000, 3, 100)]
-    with node_process(causal_arm_bin.parent / "causal_arm_explainer", params, env):
+    with node_process(causal_arm_bin.parent / "causal_arm_explainer", params, env) as explainer:
         replies = fastdds.call(peer, domain, "/explainer/explain", idl.ExplainRequest, idl.ExplainReply,
-                               [request for _, request in made], timeout=120)
+                               [request for _, request in made], timeout=120, server=explainer)
     for (rows, _), reply in zip(made, replies):
         check_deep_reply(exp2, rows, reply)
 

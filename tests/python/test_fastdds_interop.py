@@ -163,11 +163,11 @@ def test_a_fastdds_client_gets_its_own_reply_to_each_of_several_concurrent_reque
     request by related sample identity and holds that request's predictions."""
     made = _predict_requests(range(1, 9), 8)
     replies = fastdds.call(peer, DOMAIN + 3, "/trainer/predict_next_state", idl.PredictNextStateRequest,
-                           idl.PredictNextStateReply, [m[2] for m in made])
+                           idl.PredictNextStateReply, [m[2] for m in made], server=trainer_node)
     _check_predictions(model_dir, made, replies)
     assert [len(r.next_state) for r in replies] == [10 * n for n in range(1, 9)]
     info = fastdds.call(peer, DOMAIN + 3, "/trainer/model_info", idl.GetModelInfoRequest, idl.GetModelInfoReply,
-                        [idl.GetModelInfoRequest(model="fm")])[0]
+                        [idl.GetModelInfoRequest(model="fm")], server=trainer_node)[0]
     assert info.success and "fm" in info.models, info.message
 
 
@@ -175,7 +175,7 @@ def test_the_advertised_row_limit_reaches_a_fastdds_client(peer, trainer_node, m
     """100,000 rows: a 13.6 MB request from Fast DDS and an 8 MB reply back."""
     made = _predict_requests([100_000], 9)
     replies = fastdds.call(peer, DOMAIN + 3, "/trainer/predict_next_state", idl.PredictNextStateRequest,
-                           idl.PredictNextStateReply, [m[2] for m in made], timeout=120)
+                           idl.PredictNextStateReply, [m[2] for m in made], timeout=120, server=trainer_node)
     _check_predictions(model_dir, made, replies)
 
 
@@ -186,45 +186,11 @@ def test_every_endpoint_announces_its_type_hash_in_user_data(peer, causal_arm_bi
     taking any builtin DCPSPublication sample, so Fast DDS is the witness here."""
     domain = DOMAIN + 5
     env = fastdds.env(domain)
-    with open(os.devnull, "w") as null:
-        ours = [
-            subprocess.Popen([str(causal_arm_bin), "topic", "pub", "/joint_states", "--type",
-                              "sensor_msgs/msg/JointState", "--json", json.dumps(_sample_json()), "--count", "200",
-                              "--rate", "20"], env=env, stdout=null, stderr=null),
-            subprocess.Popen([str(causal_arm_bin), "topic", "echo", "/joint_states", "--type",
-                              "sensor_msgs/msg/JointState", "--count", "1000", "--timeout", "30"], env=env,
-                             stdout=null, stderr=null),
-            subprocess.Popen([str(causal_arm_bin), "service", "call", "/trainer/model_info", "--type",
-                              "causal_arm_msgs/srv/GetModelInfo", "--timeout", "30"], env=env, stdout=null,
-                             stderr=null),
-        ]
-    try:
-        seen = subprocess.run([str(peer), "discover", "8"], env=env, capture_output=True, text=True, timeout=60)
-    finally:
-        for p in ours:
-            p.kill()
-            p.wait()
-    assert seen.returncode == 0, seen.stderr
-    endpoints = {}
-    for line in seen.stdout.splitlines():
-        kind, topic, type_name, user_data = (line.split(" ") + [""])[:4]
-        endpoints[(kind, topic)] = (type_name, bytes.fromhex(user_data))
     wanted = [("writer", "rt/joint_states"), ("reader", "rt/joint_states"),
               ("writer", "rq/trainer/model_infoRequest"), ("reader", "rr/trainer/model_infoReply")]
-    for key in wanted:
-        assert key in endpoints, (key, sorted(endpoints))
-        type_name, user_data = endpoints[key]
-        assert user_data.startswith(b"typehash=RIHS01_") and user_data.endswith(b";"), (key, user_data)
-    for kind in ["writer", "reader"]:
-        assert endpoints[(kind, "rt/joint_states")][1] == \
-            b"typehash=RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e;"
-    assert endpoints[("writer", "rq/trainer/model_infoRequest")][1] == \
-        endpoints[("reader", "rr/trainer/model_infoReply")][1], "both halves announce the service's hash"
     # ros2-client's own endpoints too (patched): discovery info, rosout, parameter events,
     # the clock reader (now typed rosgraph_msgs/Clock as ROS 2 publishes it) and every
     # parameter service; the values are those Jazzy publishes.
-    missing = sorted(key for key, (_, user_data) in endpoints.items() if not user_data.startswith(b"typehash=RIHS01_"))
-    assert not missing, f"endpoints without a type hash: {missing}"
     published = {
         ("writer", "ros_discovery_info"): "91a0593bacdcc50ea9bdcf849a938b128412cc1ea821245c663bcd26f83c295e",
         ("writer", "rt/rosout"): "e28ce254ca8abc06abf92773b74602cdbf116ed34fbaf294fb9f81da9f318eac",
@@ -233,6 +199,35 @@ def test_every_endpoint_announces_its_type_hash_in_user_data(peer, causal_arm_bi
         ("reader", "rq/causal_arm_topic_echo/get_parametersRequest"):
             "bf9803d5c74cf989a5de3e0c2e99444599a627c7ff75f97b8c05b01003675cbc",
     }
+    # Our processes outlive the discovery window (they are killed after it).
+    with open(os.devnull, "w") as null:
+        ours = [
+            subprocess.Popen([str(causal_arm_bin), "topic", "pub", "/joint_states", "--type",
+                              "sensor_msgs/msg/JointState", "--json", json.dumps(_sample_json()), "--count", "2000",
+                              "--rate", "20"], env=env, stdout=null, stderr=null),
+            subprocess.Popen([str(causal_arm_bin), "topic", "echo", "/joint_states", "--type",
+                              "sensor_msgs/msg/JointState", "--count", "100000", "--timeout", "120"], env=env,
+                             stdout=null, stderr=null),
+            subprocess.Popen([str(causal_arm_bin), "service", "call", "/trainer/model_info", "--type",
+                              "causal_arm_msgs/srv/GetModelInfo", "--timeout", "120"], env=env, stdout=null,
+                             stderr=null),
+        ]
+    try:
+        endpoints = fastdds.discover(peer, domain, [*wanted, *published], timeout=60)
+    finally:
+        for p in ours:
+            p.kill()
+            p.wait()
+    for key in wanted:
+        type_name, user_data = endpoints[key]
+        assert user_data.startswith(b"typehash=RIHS01_") and user_data.endswith(b";"), (key, user_data)
+    for kind in ["writer", "reader"]:
+        assert endpoints[(kind, "rt/joint_states")][1] == \
+            b"typehash=RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e;"
+    assert endpoints[("writer", "rq/trainer/model_infoRequest")][1] == \
+        endpoints[("reader", "rr/trainer/model_infoReply")][1], "both halves announce the service's hash"
+    missing = sorted(key for key, (_, user_data) in endpoints.items() if not user_data.startswith(b"typehash=RIHS01_"))
+    assert not missing, f"endpoints without a type hash: {missing}"
     for key, hex_hash in published.items():
         assert endpoints[key][1] == f"typehash=RIHS01_{hex_hash};".encode(), (key, endpoints[key])
     assert endpoints[("reader", "rt/clock")][0] == "rosgraph_msgs::msg::dds_::Clock_"

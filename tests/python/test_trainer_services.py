@@ -54,7 +54,7 @@ def clients(trainer_node):
         "info": idl.ServiceClient(participant, "/trainer/model_info", idl.GetModelInfoRequest, idl.GetModelInfoReply),
     }
     for name, client in made.items():
-        assert client.wait_for_server(), f"{name}: no server matched (node stderr: {trainer_node.stderr.read() if trainer_node.poll() is not None else 'running'})"
+        assert client.wait_for_server(), f"{name}: no server matched (node stderr: {trainer_node.log()[-3000:] if trainer_node.poll() is not None else 'running'})"
     return made
 
 
@@ -173,7 +173,7 @@ def test_node_trains_from_a_bag_then_serves_what_it_trained(causal_arm_bin, exp1
         participant = DomainParticipant(42)
         info = idl.ServiceClient(participant, "/trainer/model_info", idl.GetModelInfoRequest, idl.GetModelInfoReply)
         nxt = idl.ServiceClient(participant, "/trainer/predict_next_state", idl.PredictNextStateRequest, idl.PredictNextStateReply)
-        assert info.wait_for_server(timeout=120), proc.stderr.read() if proc.poll() is not None else "no server"
+        assert info.wait_for_server(timeout=120), proc.log()[-3000:]
         reply = info.call(idl.GetModelInfoRequest(model="fm"))
         assert reply.success, reply.message
         assert reply.models == ["fm"]
@@ -188,7 +188,7 @@ def test_node_trains_from_a_bag_then_serves_what_it_trained(causal_arm_bin, exp1
         assert r.success, r.message
         np.testing.assert_allclose(r.next_state, numpy_predict(out, "fm", np.concatenate([state, action], axis=1))[0],
                                    rtol=1e-4, atol=1e-5)
-    assert proc.returncode == 0, proc.stderr.read()
+    assert proc.returncode == 0, proc.log()[-3000:]
     assert json.loads((out / "metrics.json").read_text())["models"]["fm"]["figures"][0]["key"] == "fm/theta"
     assert sorted(p.name for p in out.iterdir()) == ["fm.json", "fm.safetensors", "metrics.json"]
 

@@ -7,6 +7,7 @@
 
 use std::cell::Cell;
 use std::fmt::Write as _;
+use std::io::IsTerminal as _;
 use std::sync::{Mutex, OnceLock};
 
 use ros2_client::{NodeLoggingHandle, RosoutRaw, builtin_interfaces::Time, ros2::LogLevel};
@@ -35,6 +36,8 @@ pub fn init_with_level(level: Option<&str>) {
         .unwrap_or_else(|_| EnvFilter::new(format!("{default},rustdds=warn,ros2_client=warn")));
     let fmt = tracing_subscriber::fmt::layer()
         .with_writer(std::io::stderr)
+        // Colours on a terminal only: logs piped to a file or a launcher stay plain lines.
+        .with_ansi(std::io::stderr().is_terminal())
         .with_target(false)
         .with_filter(filter);
     let subscriber = tracing_subscriber::registry().with(fmt).with(RosoutLayer);

@@ -19,12 +19,44 @@ import shutil
 import subprocess
 import threading
 import time
+import warnings
 
 import pytest
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[2]
 SOURCE = REPO_ROOT / "tests" / "fastdds" / "fastdds_peer.cpp"
 HEADER = slice(4, 20)
+
+# Debian 12's Fast DDS 2.9.1 is built with assertions and aborts in its statistics module
+# ("OutputTrafficManager.hpp:87 … Assertion `it != collection_.end()' failed") when a writer
+# sends to a remote locator it created no sender resource for, a race with discovery of a
+# new participant: about 1 peer run in 15 here. Fixed upstream in Fast DDS 3.2.0, 3.1.3, 2.14.5
+# and 2.10.7 (eProsima/Fast-DDS#5704, "Fix assertion on OutputTrafficManager"). Only a peer that died
+# with exactly this signature is run again; every other failure fails the test.
+UPSTREAM_ABORT = "OutputTrafficManager.hpp"
+ATTEMPTS = 3
+
+
+class PeerAborted(Exception):
+    """The Fast DDS peer died of the upstream statistics assertion, not of anything we sent."""
+
+
+def check_upstream_abort(stderr: str):
+    """Raises PeerAborted when the peer's stderr shows the upstream Fast DDS 2.9 abort."""
+    if UPSTREAM_ABORT in stderr and "Assertion" in stderr:
+        raise PeerAborted(stderr[-500:])
+
+
+def retry_upstream_abort(scenario):
+    """Runs `scenario()` (which starts its own peer) up to ATTEMPTS times while the peer dies
+    of the upstream Fast DDS 2.9 abort; says so as a warning each time; returns its result."""
+    for attempt in range(1, ATTEMPTS + 1):
+        try:
+            return scenario()
+        except PeerAborted as e:
+            warnings.warn(f"Fast DDS peer hit the upstream 2.9.1 statistics abort (attempt {attempt}): {e}")
+            if attempt == ATTEMPTS:
+                raise
 
 
 def build() -> pathlib.Path:
@@ -65,9 +97,15 @@ def call(peer, domain, service, request_cls, reply_cls, requests, timeout=60.0, 
     decoded replies in request order (the peer matched each by related sample identity).
     With `server` (a `node_process`), a failure shows the end of that node's log too."""
     lines = "".join(enhanced_payload(r).hex() + "\n" for r in requests)
-    r = subprocess.run([str(peer), "call", service, request_cls.__idl_typename__, reply_cls.__idl_typename__,
-                        str(timeout)], input=lines, capture_output=True, text=True, env=env(domain),
-                       timeout=timeout + 30)
+
+    def run():
+        r = subprocess.run([str(peer), "call", service, request_cls.__idl_typename__, reply_cls.__idl_typename__,
+                            str(timeout)], input=lines, capture_output=True, text=True, env=env(domain),
+                           timeout=timeout + 30)
+        check_upstream_abort(r.stderr)
+        return r
+
+    r = retry_upstream_abort(run)
     server_log = f"\nserver log:\n{server.log()[-3000:]}" if server is not None else ""
     assert r.returncode == 0, f"fastdds_peer call {service}: {r.stderr[-2000:]}{server_log}"
     replies = {}

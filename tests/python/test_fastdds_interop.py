@@ -7,6 +7,7 @@ Runs only inside tests/netns-run (loopback only)."""
 
 import json
 import os
+import shutil
 import subprocess
 import time
 
@@ -42,21 +43,26 @@ def test_fastdds_receives_joint_states_from_a_running_graph(peer, run_cli, tmp_p
     equal to what the bag holds, through to the last step. The simulator waits only for the
     graph's own readers, so a volatile outside reader may match a few steps late (as with
     rmw_fastrtps); what it missed before matching is a prefix, never a gap."""
-    # To a file, not a pipe: a full pipe would stall the peer while the graph runs.
-    with open(tmp_path / "sub.out", "w") as out, open(tmp_path / "sub.err", "w") as err:
-        sub = subprocess.Popen([str(peer), "sub", "rt/joint_states", JOINT_STATE, "3000", "240", "20"],
-                               env=fastdds.env(DOMAIN), stdout=out, stderr=err)
-    try:
-        time.sleep(1.0)  # the Fast DDS participant is up before the graph starts
-        r = run_cli("launch", "exp1", "--steps", "3000", "--seed", "2", "--out", tmp_path / "bag",
-                    env={"ROS_DOMAIN_ID": str(DOMAIN)}, timeout=300)
-        assert r.returncode == 0, r.stderr[-2000:]
-        sub.wait(timeout=60)
-    finally:
-        if sub.poll() is None:
-            sub.kill()
-            sub.wait()
-    assert sub.returncode == 0, (tmp_path / "sub.err").read_text()
+    def receive_during_a_launch():
+        # To a file, not a pipe: a full pipe would stall the peer while the graph runs.
+        with open(tmp_path / "sub.out", "w") as out, open(tmp_path / "sub.err", "w") as err:
+            sub = subprocess.Popen([str(peer), "sub", "rt/joint_states", JOINT_STATE, "3000", "240", "20"],
+                                   env=fastdds.env(DOMAIN), stdout=out, stderr=err)
+        try:
+            time.sleep(1.0)  # the Fast DDS participant is up before the graph starts
+            shutil.rmtree(tmp_path / "bag", ignore_errors=True)
+            r = run_cli("launch", "exp1", "--steps", "3000", "--seed", "2", "--out", tmp_path / "bag",
+                        env={"ROS_DOMAIN_ID": str(DOMAIN)}, timeout=300)
+            assert r.returncode == 0, r.stderr[-2000:]
+            sub.wait(timeout=60)
+        finally:
+            if sub.poll() is None:
+                sub.kill()
+                sub.wait()
+        fastdds.check_upstream_abort((tmp_path / "sub.err").read_text())
+        assert sub.returncode == 0, (tmp_path / "sub.err").read_text()
+
+    fastdds.retry_upstream_abort(receive_during_a_launch)
     got = [idl.JointState.deserialize(bytes.fromhex(line)) for line in (tmp_path / "sub.out").read_text().splitlines()]
     recorded = _bag_joint_states(tmp_path / "bag")
     assert len(recorded) == 3000
@@ -74,27 +80,32 @@ def test_our_echo_receives_a_fastdds_publisher(peer, causal_arm_bin, private_net
                              name=JOINT_NAMES, position=want["position"], velocity=want["velocity"],
                              effort=want["effort"])
         samples.append(msg)
-    echo = subprocess.Popen([str(causal_arm_bin), "topic", "echo", "/joint_states", "--type",
-                             "sensor_msgs/msg/JointState", "--count", "3", "--timeout", "60"],
-                            env=fastdds.env(DOMAIN + 1), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    pub = subprocess.run([str(peer), "pub", "rt/joint_states", JOINT_STATE, "60"],
-                         input="".join(m.serialize().hex() + "\n" for m in samples),
-                         env=fastdds.env(DOMAIN + 1), capture_output=True, text=True, timeout=90)
-    out, err = echo.communicate(timeout=60)
-    assert pub.returncode == 0, pub.stderr
-    assert echo.returncode == 0, err
+
+    def echo_a_fastdds_publisher():
+        echo = subprocess.Popen([str(causal_arm_bin), "topic", "echo", "/joint_states", "--type",
+                                 "sensor_msgs/msg/JointState", "--count", "3", "--timeout", "60"],
+                                env=fastdds.env(DOMAIN + 1), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        pub = subprocess.run([str(peer), "pub", "rt/joint_states", JOINT_STATE, "60"],
+                             input="".join(m.serialize().hex() + "\n" for m in samples),
+                             env=fastdds.env(DOMAIN + 1), capture_output=True, text=True, timeout=90)
+        if pub.returncode != 0:
+            echo.kill()
+        out, err = echo.communicate(timeout=60)
+        fastdds.check_upstream_abort(pub.stderr)
+        assert pub.returncode == 0, pub.stderr
+        assert echo.returncode == 0, err
+        return out
+
+    out = fastdds.retry_upstream_abort(echo_a_fastdds_publisher)
     lines = [json.loads(line) for line in out.splitlines() if line.strip()]
     assert len(lines) == 3
     for got, sent in zip(lines, samples):
         _assert_joint_state_equal(got, _as_dict(sent))
 
 
-def test_our_service_call_reaches_a_fastdds_server_naming_its_reply_reader(peer, run_cli, private_netns):
-    """`causal-arm service call` (rmw_fastrtps mapping) sends its reply reader's GUID as the
-    related sample identity, so the Fast DDS server waits for that reader before replying
-    (patches/ros2-client-service-reply-reader.diff); two calls, two right replies."""
-    reply = idl.GetModelInfoReply(success=True, message="served by Fast DDS", models=["fm", "im-mono"],
-                                  state_names=["theta0", "theta1"], action_names=["a0"], metrics_json='{"x": 1}')
+def _serve_two_calls(peer, run_cli, reply):
+    """A Fast DDS server of /trainer/model_info answers two `causal-arm service call`s;
+    returns what the server printed (one line per request)."""
     server = subprocess.Popen([str(peer), "serve", "/trainer/model_info", idl.GetModelInfoRequest.__idl_typename__,
                                idl.GetModelInfoReply.__idl_typename__, "2", "90", fastdds.enhanced_payload(reply).hex()],
                               env=fastdds.env(DOMAIN + 2), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -106,6 +117,7 @@ def test_our_service_call_reaches_a_fastdds_server_naming_its_reply_reader(peer,
             if r.returncode != 0:  # say what the Fast DDS side saw too
                 server.kill()
                 out, err = server.communicate()
+                fastdds.check_upstream_abort(err)
                 pytest.fail(f"service call failed:\n{r.stderr[-2000:]}\nFast DDS server:\n{out[-1000:]}\n{err[-1000:]}")
             got = json.loads(r.stdout)
             assert got["success"] and got["message"] == reply.message and got["models"] == reply.models
@@ -115,7 +127,18 @@ def test_our_service_call_reaches_a_fastdds_server_naming_its_reply_reader(peer,
         if server.poll() is None:
             server.kill()
             server.wait()
+    fastdds.check_upstream_abort(err)
     assert server.returncode == 0, err
+    return out
+
+
+def test_our_service_call_reaches_a_fastdds_server_naming_its_reply_reader(peer, run_cli, private_netns):
+    """`causal-arm service call` (rmw_fastrtps mapping) sends its reply reader's GUID as the
+    related sample identity, so the Fast DDS server waits for that reader before replying
+    (patches/ros2-client-service-reply-reader.diff); two calls, two right replies."""
+    reply = idl.GetModelInfoReply(success=True, message="served by Fast DDS", models=["fm", "im-mono"],
+                                  state_names=["theta0", "theta1"], action_names=["a0"], metrics_json='{"x": 1}')
+    out = fastdds.retry_upstream_abort(lambda: _serve_two_calls(peer, run_cli, reply))
     requests = [line.split(" ") for line in out.splitlines()]
     assert [kind for kind, _ in requests] == ["reader", "reader"], "each request named its reply reader"
     assert [fastdds.from_enhanced(idl.GetModelInfoRequest, bytes.fromhex(h)).model for _, h in requests] == \

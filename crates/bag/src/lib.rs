@@ -16,10 +16,12 @@ mod bounds;
 mod check;
 mod metadata;
 mod reader;
+mod shards;
 mod writer;
 
 pub use check::Damage;
 pub use reader::{BagReader, RawMessage, ReadPolicy, TopicInfo};
+pub use shards::{SHARD_SET_FILE, ShardSet, bags_in};
 pub use writer::{
     BAG_METADATA_NAME, BagOptions, BagSummary, BagWriter, Compression, existing_bag,
     offered_qos_yaml,

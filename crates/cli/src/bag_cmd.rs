@@ -18,16 +18,17 @@ pub struct BagArgs {
 
 #[derive(Debug, clap::Subcommand)]
 enum BagCommand {
-    /// Topics, types, message counts and integrity of a bag, as JSON.
+    /// Topics, types, message counts and integrity of a bag, as JSON (for a shard set, a
+    /// JSON array with one entry per shard).
     Info {
-        /// Bag directory or .mcap file.
+        /// Bag directory, .mcap file or shard set.
         bag: PathBuf,
     },
     /// Checks everything (record framing, chunk sizes and CRCs, message indexes, section
     /// CRCs, summary and metadata.yaml counts, step completeness); prints a JSON report and
-    /// exits 1 unless the bag is sound and finished.
+    /// exits 1 unless the bag (every shard of a shard set) is sound and finished.
     Check {
-        /// Bag directory or .mcap file.
+        /// Bag directory, .mcap file or shard set.
         bag: PathBuf,
     },
     /// Writes a new bag (MCAP with summary, and metadata.yaml) from every intact chunk of
@@ -47,8 +48,8 @@ enum BagCommand {
 /// Runs `causal-arm bag …`.
 pub fn run(args: &BagArgs) -> anyhow::Result<()> {
     match &args.command {
-        BagCommand::Info { bag } => info(bag),
-        BagCommand::Check { bag } => check(bag),
+        BagCommand::Info { bag } => each_bag(bag, info_report),
+        BagCommand::Check { bag } => each_bag(bag, check_report),
         BagCommand::Recover {
             bag,
             out,
@@ -57,7 +58,47 @@ pub fn run(args: &BagArgs) -> anyhow::Result<()> {
     }
 }
 
-fn info(bag: &Path) -> anyhow::Result<()> {
+/// Prints `report` of `path` as JSON, or for a shard set a JSON array of its shards'
+/// reports; fails when any report failed, after printing them all.
+fn each_bag(
+    path: &Path,
+    report: fn(&Path) -> (Option<serde_json::Value>, anyhow::Result<()>),
+) -> anyhow::Result<()> {
+    if causal_arm_bag::ShardSet::read(path)?.is_none() {
+        let (json, verdict) = report(path);
+        if let Some(json) = json {
+            println!("{}", serde_json::to_string_pretty(&json)?);
+        }
+        return verdict;
+    }
+    let (mut reports, mut failed) = (Vec::new(), Vec::new());
+    for bag in causal_arm_bag::bags_in(path)? {
+        let (json, verdict) = report(&bag);
+        reports.push(json.unwrap_or_else(|| json!({"path": bag})));
+        if let Err(e) = verdict {
+            failed.push(format!("{e:#}"));
+        }
+    }
+    println!("{}", serde_json::to_string_pretty(&reports)?);
+    match failed.is_empty() {
+        true => Ok(()),
+        false => bail!(
+            "{} of {} shards failed: {}",
+            failed.len(),
+            reports.len(),
+            failed.join("; ")
+        ),
+    }
+}
+
+fn info_report(bag: &Path) -> (Option<serde_json::Value>, anyhow::Result<()>) {
+    match info(bag) {
+        Ok(json) => (Some(json), Ok(())),
+        Err(e) => (None, Err(e)),
+    }
+}
+
+fn info(bag: &Path) -> anyhow::Result<serde_json::Value> {
     let reader = BagReader::open(bag)?;
     let mut first = None;
     let mut last = None;
@@ -76,8 +117,7 @@ fn info(bag: &Path) -> anyhow::Result<()> {
         "damage": damage_json(&reader),
         "topics": topics_json(&reader),
     });
-    println!("{}", serde_json::to_string_pretty(&info)?);
-    Ok(())
+    Ok(info)
 }
 
 fn topics_json(reader: &BagReader) -> Vec<serde_json::Value> {
@@ -96,8 +136,11 @@ fn damage_json(reader: &BagReader) -> Vec<serde_json::Value> {
         .collect()
 }
 
-fn check(bag: &Path) -> anyhow::Result<()> {
-    let reader = BagReader::open_unchecked(bag)?;
+fn check_report(bag: &Path) -> (Option<serde_json::Value>, anyhow::Result<()>) {
+    let reader = match BagReader::open_unchecked(bag) {
+        Ok(reader) => reader,
+        Err(e) => return (None, Err(e.into())),
+    };
     // metadata.yaml and the file's own damage, as a strict reader judges them.
     let verdict = reader.judge(bag, ReadPolicy::Strict).err();
     let steps = if verdict.is_none() {
@@ -122,7 +165,14 @@ fn check(bag: &Path) -> anyhow::Result<()> {
         "steps": steps,
         "topics": topics_json(&reader),
     });
-    println!("{}", serde_json::to_string_pretty(&report)?);
+    (Some(report), check_verdict(&reader, verdict, &steps))
+}
+
+fn check_verdict(
+    reader: &BagReader,
+    verdict: Option<causal_arm_bag::BagError>,
+    steps: &serde_json::Value,
+) -> anyhow::Result<()> {
     if let Some(e) = verdict {
         bail!("{e}");
     }

@@ -5,13 +5,25 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use causal_arm_datagen::{GenerateOptions, generate};
+use causal_arm_datagen::{GenerateOptions, generate, generate_shards, shard_options};
 use causal_arm_protocol::graph::run_default_text;
 use causal_arm_protocol::{Experiment, Profile, RunPlan};
 use clap::Args;
 
 use crate::choice::choice;
 use crate::progress::Counter;
+
+/// `causal-arm generate`: the run's arguments, and how many cores to spread it over.
+#[derive(Debug, Args)]
+pub struct GenerateCmd {
+    #[command(flatten)]
+    run: GenerateArgs,
+    /// Cut the run into N shards simulated side by side (one core each), written as a
+    /// shard set: OUT/shard-0 … each a complete bag, listed in OUT/shard_set.yaml, which
+    /// train, explain and rollout take as one dataset. 1 writes one bag at OUT.
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    shards: i64,
+}
 
 /// Arguments shared by `generate` and `launch`; the run's defaults come from the graph
 /// file (launch_scripts/graph.toml), as the nodes' do.
@@ -114,8 +126,21 @@ fn within_graph_range(name: &str, value: f64) -> anyhow::Result<()> {
 }
 
 /// Runs `causal-arm generate`.
-pub fn run(args: &GenerateArgs) -> anyhow::Result<()> {
+pub fn run(cmd: &GenerateCmd) -> anyhow::Result<()> {
+    let args = &cmd.run;
     let options = args.options()?;
+    let shards = match cmd.shards {
+        n if n >= 1 => n as u64,
+        n => anyhow::bail!("--shards must be at least 1, got {n}"),
+    };
+    if shards > 1 {
+        if args.resume {
+            anyhow::bail!(
+                "--resume continues one bag; give --shards 1, or re-run the shard set with --overwrite"
+            );
+        }
+        return run_shards(&options, shards);
+    }
     let total = options.plan.total_steps();
     let mut counter = Counter::new(
         total,
@@ -152,6 +177,43 @@ pub fn run(args: &GenerateArgs) -> anyhow::Result<()> {
         summary.messages,
         secs,
         (summary.steps - summary.resumed_at) as f64 / secs
+    );
+    Ok(())
+}
+
+/// `generate --shards N` (N > 1): the shard set, one line per shard and one for the set.
+fn run_shards(options: &GenerateOptions, shards: u64) -> anyhow::Result<()> {
+    let total = options.plan.total_steps();
+    let label = format!(
+        "{} seed {}, {shards} shards",
+        options.experiment, options.seed
+    );
+    let mut counter = Counter::new(total, &label, "steps");
+    let start = Instant::now();
+    let generated = generate_shards(options, shards, &mut |done, _| counter.set(done));
+    counter.finish();
+    let summaries = generated.with_context(|| {
+        format!(
+            "generating {} into the shard set {}",
+            options.experiment,
+            options.out.display()
+        )
+    })?;
+    let secs = start.elapsed().as_secs_f64();
+    for (shard, summary) in shard_options(options, shards)?.iter().zip(&summaries) {
+        println!(
+            "wrote {} (seed {}, {} steps, {} messages)",
+            summary.bag_dir.display(),
+            shard.seed,
+            summary.steps,
+            summary.messages
+        );
+    }
+    let steps: u64 = summaries.iter().map(|s| s.steps).sum();
+    println!(
+        "wrote shard set {} ({shards} shards, {steps} steps) in {secs:.1} s ({:.0} steps/s)",
+        options.out.display(),
+        steps as f64 / secs
     );
     Ok(())
 }

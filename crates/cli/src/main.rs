@@ -43,7 +43,7 @@ enum Command {
     /// Inspect, check and recover bags (topics, counts, integrity).
     Bag(bag_cmd::BagArgs),
     /// Run an experiment in one process (no DDS) and write its dataset bag.
-    Generate(generate_cmd::GenerateArgs),
+    Generate(generate_cmd::GenerateCmd),
     /// Start the simulator, babbler and recorder nodes over DDS and record the bag.
     Launch(launch_cmd::LaunchArgs),
     /// Republish a bag on its topics (like `ros2 bag play`).

@@ -260,7 +260,7 @@ fn load_dataset(
     let cache =
         (!args.no_cache).then(|| Cache::new(args.cache.clone().unwrap_or_else(Cache::default_dir)));
     let (data, outcomes) = load_bags(&args.bags, expected, action, cache.as_ref())?;
-    for (bag, outcome) in args.bags.iter().zip(&outcomes) {
+    for (bag, outcome) in &outcomes {
         let how = match outcome {
             CacheOutcome::Hit => "from cache",
             CacheOutcome::Built => "decoded",

@@ -22,7 +22,9 @@ use causal_arm_sim::{SimConfig, SimError, Simulator};
 use thiserror::Error;
 
 mod resume;
+mod shards;
 pub use resume::{interrupted_dir, resume_point};
+pub use shards::{Shard, generate_shards, shard_options};
 
 /// Everything a generation run needs.
 #[derive(Debug, Clone)]
@@ -45,6 +47,8 @@ pub struct GenerateOptions {
     pub exp1: Exp1Config,
     /// Exp 2 babbling settings (seed derived from `seed`).
     pub exp2: Exp2Config,
+    /// This run's place in a shard set (`generate --shards`), if it is a shard.
+    pub shard: Option<Shard>,
 }
 
 impl GenerateOptions {
@@ -76,6 +80,14 @@ impl GenerateOptions {
                 self.exp2.move_while_switching.to_string(),
             );
         }
+        if let Some(shard) = self.shard {
+            let place = format!("{}/{}", shard.index, shard.count);
+            data.insert(bag_keys::SHARD.to_owned(), place);
+            data.insert(
+                bag_keys::SHARD_SET_SEED.to_owned(),
+                shard.set_seed.to_string(),
+            );
+        }
         data
     }
 
@@ -91,6 +103,7 @@ impl GenerateOptions {
             sim: SimConfig::default(),
             exp1: Exp1Config::default(),
             exp2: Exp2Config::default(),
+            shard: None,
         }
     }
 }

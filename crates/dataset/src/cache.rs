@@ -99,21 +99,23 @@ impl Cache {
     }
 }
 
-/// Loads several bags as one dataset (same experiment), through `cache` when given.
+/// Loads several bags as one dataset (same experiment), through `cache` when given. A
+/// shard set stands for its shards, in order; each bag's episodes stay its own, so no
+/// transition crosses from one bag or shard into the next. Says how each bag was read.
 pub fn load_bags(
     bags: &[PathBuf],
     expected: Option<Experiment>,
     action: ActionSource,
     cache: Option<&Cache>,
-) -> Result<(Dataset, Vec<CacheOutcome>), DatasetError> {
+) -> Result<(Dataset, Vec<(PathBuf, CacheOutcome)>), DatasetError> {
     let mut outcomes = Vec::new();
     let mut all: Option<Dataset> = None;
-    for bag in bags {
+    for bag in expand_shard_sets(bags)? {
         let (data, outcome) = match cache {
-            Some(cache) => cache.load_or_build(bag, expected, action)?,
-            None => (from_bag(bag, expected, action)?, CacheOutcome::Built),
+            Some(cache) => cache.load_or_build(&bag, expected, action)?,
+            None => (from_bag(&bag, expected, action)?, CacheOutcome::Built),
         };
-        outcomes.push(outcome);
+        outcomes.push((bag, outcome));
         match &mut all {
             None => all = Some(data),
             Some(all) => all.append(data)?,
@@ -121,6 +123,15 @@ pub fn load_bags(
     }
     let data = all.ok_or_else(|| DatasetError::Mixed("no bags given".into()))?;
     Ok((data, outcomes))
+}
+
+/// The bags `paths` stand for, shard sets replaced by their shards.
+pub fn expand_shard_sets(paths: &[PathBuf]) -> Result<Vec<PathBuf>, DatasetError> {
+    let mut bags = Vec::new();
+    for path in paths {
+        bags.extend(causal_arm_bag::bags_in(path)?);
+    }
+    Ok(bags)
 }
 
 fn cache_err(path: &Path, problem: impl std::fmt::Display) -> DatasetError {

@@ -178,7 +178,8 @@ fn cache_returns_the_same_dataset_and_multiple_bags_concatenate() {
         Some(&cache),
     )
     .unwrap();
-    assert_eq!(outcomes, [CacheOutcome::Hit, CacheOutcome::Built]);
+    let how: Vec<_> = outcomes.iter().map(|(_, o)| *o).collect();
+    assert_eq!(how, [CacheOutcome::Hit, CacheOutcome::Built]);
     assert_eq!(both.rows(), 119 + 79);
     assert_eq!(both.sources.len(), 2);
     assert_eq!(

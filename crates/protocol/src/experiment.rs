@@ -65,6 +65,58 @@ impl RunPlan {
     pub fn total_steps(&self) -> u64 {
         self.episodes * self.steps_per_episode
     }
+
+    /// The plans of `count` shards that together run this plan's steps: exp 1's one long
+    /// episode is cut into `count` episodes; exp 2's episodes (of fixed length) are dealt
+    /// out. Earlier shards take the remainder. A shard with nothing to do is refused,
+    /// naming the sizes.
+    pub fn shards(&self, experiment: Experiment, count: u64) -> Result<Vec<RunPlan>, String> {
+        if count == 0 {
+            return Err("--shards must be at least 1, got 0".into());
+        }
+        let split = |total: u64| -> Vec<u64> {
+            (0..count)
+                .map(|i| total / count + u64::from(i < total % count))
+                .collect()
+        };
+        let plans: Vec<RunPlan> = if experiment == Experiment::Exp2 || self.episodes > 1 {
+            split(self.episodes)
+                .into_iter()
+                .map(|episodes| RunPlan { episodes, ..*self })
+                .collect()
+        } else {
+            split(self.steps_per_episode)
+                .into_iter()
+                .map(|steps_per_episode| RunPlan {
+                    episodes: self.episodes,
+                    steps_per_episode,
+                })
+                .collect()
+        };
+        if plans.iter().any(|p| p.total_steps() == 0) {
+            return Err(format!(
+                "{count} shards for {} episode(s) of {} steps leave a shard without work",
+                self.episodes, self.steps_per_episode
+            ));
+        }
+        Ok(plans)
+    }
+}
+
+/// Seed of shard `index` of a run seeded `seed`: shard 0 keeps the run's seed (so one
+/// shard is the unsharded run), the others get decorrelated seeds that no small run seed
+/// collides with.
+pub fn shard_seed(seed: u64, index: u64) -> u64 {
+    match index {
+        0 => seed,
+        i => {
+            // splitmix64 of (seed, index)
+            let mut z = seed ^ i.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+    }
 }
 
 /// `custom_data` keys a dataset bag carries (written by datagen's
@@ -85,6 +137,10 @@ pub mod bag_keys {
     /// Exp 2 babbler moves while switching the magnet (`true`/`false`; bags written before
     /// it became the default lack the key and held the arm still).
     pub const MOVE_WHILE_SWITCHING: &str = "causal_arm.move_while_switching";
+    /// A shard's place in its set, `INDEX/COUNT` (absent in unsharded bags).
+    pub const SHARD: &str = "causal_arm.shard";
+    /// The seed the shard set was asked for (each shard's own is [`SEED`]).
+    pub const SHARD_SET_SEED: &str = "causal_arm.shard_set_seed";
 }
 
 /// Seed of the simulator for a run seed (decorrelated from the babbler's).
@@ -124,6 +180,71 @@ mod tests {
     }
 
     /// Every bag's content depends on these; a change would silently change all datasets.
+    #[test]
+    fn shards_share_out_the_plan_exactly() {
+        let exp1 = RunPlan::for_profile(Experiment::Exp1, Profile::Paper);
+        let halves = exp1.shards(Experiment::Exp1, 2).unwrap();
+        assert_eq!(
+            halves,
+            vec![
+                RunPlan {
+                    episodes: 1,
+                    steps_per_episode: 250_000
+                };
+                2
+            ]
+        );
+        let exp2 = RunPlan {
+            episodes: 5,
+            steps_per_episode: 500,
+        };
+        let three: Vec<u64> = (exp2.shards(Experiment::Exp2, 3).unwrap().iter())
+            .map(|p| p.episodes)
+            .collect();
+        assert_eq!(three, vec![2, 2, 1]);
+        let cases = [
+            (exp1, Experiment::Exp1, 3),
+            (exp2, Experiment::Exp2, 2),
+            (exp2, Experiment::Exp2, 5),
+        ];
+        for (plan, experiment, n) in cases {
+            let shards = plan.shards(experiment, n).unwrap();
+            let total: u64 = shards.iter().map(RunPlan::total_steps).sum();
+            assert_eq!(total, plan.total_steps());
+        }
+        assert_eq!(exp1.shards(Experiment::Exp1, 1).unwrap(), vec![exp1]);
+        assert!(
+            exp2.shards(Experiment::Exp2, 0)
+                .unwrap_err()
+                .contains("at least 1")
+        );
+        let err = exp2.shards(Experiment::Exp2, 6).unwrap_err();
+        assert!(
+            err.contains("6 shards") && err.contains("5 episode"),
+            "{err}"
+        );
+        let one = RunPlan {
+            episodes: 1,
+            steps_per_episode: 500,
+        };
+        assert!(
+            one.shards(Experiment::Exp2, 2).is_err(),
+            "exp 2 episodes are never cut"
+        );
+    }
+
+    #[test]
+    fn shard_zero_keeps_the_run_seed_and_the_rest_differ() {
+        assert_eq!(shard_seed(5, 0), 5);
+        let seeds: std::collections::BTreeSet<u64> = (0..64).map(|i| shard_seed(5, i)).collect();
+        assert_eq!(seeds.len(), 64);
+        assert!(
+            (1..64).all(|i| shard_seed(5, i) > 1_000_000),
+            "no collision with small run seeds"
+        );
+        assert_ne!(shard_seed(5, 1), shard_seed(6, 1));
+    }
+
     #[test]
     fn seeds_are_stable() {
         assert_eq!(sim_seed(3), 0xdaa6_6d2c_7ddf_256e);

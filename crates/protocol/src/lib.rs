@@ -25,7 +25,7 @@ pub mod topics;
 
 pub use checks::{WellFormed, command_of};
 pub use choice::{Choice, one_of, parse_choice};
-pub use experiment::{Experiment, Profile, RunPlan, babbler_seed, bag_keys, sim_seed};
+pub use experiment::{Experiment, Profile, RunPlan, babbler_seed, bag_keys, shard_seed, sim_seed};
 pub use graph::{GraphSpec, NodeDecl, ParamDecl, ParamDefault, graph};
 pub use identity::{Gid, Origin, Quarantine, QuarantineCounts, Trusted, WriterDirectory};
 pub use join::{JoinCounts, Refusal, StepJoiner, StepParts, fill};

@@ -4,6 +4,7 @@
 Runs, in one go on this machine:
   * `causal-arm generate exp1` (simulator + babbler + bag writing, one process, no DDS)
   * `causal-arm generate exp2`
+  * both again with `--shards 2` (two seeded shards simulated side by side, one per core)
   * `causal-arm launch exp1` (simulator, babbler and recorder as three DDS processes in
     lock-step; only when run inside tests/netns-run, since it starts DDS participants)
   * a PyBullet script doing the paper's exp1 loop: pybullet_data's kuka_iiwa, random
@@ -71,14 +72,14 @@ def ours_dds(binary: str, steps: int) -> float:
         return steps / (time.perf_counter() - start)
 
 
-def ours(binary: str, experiment: str, steps: int) -> float:
+def ours(binary: str, experiment: str, steps: int, shards: int = 1) -> float:
     with tempfile.TemporaryDirectory() as tmp:
         out = pathlib.Path(tmp) / "bag"
         size = ["--steps", str(steps)] if experiment == "exp1" else ["--episodes", str(max(1, steps // 500))]
         total = steps if experiment == "exp1" else max(1, steps // 500) * 500
         start = time.perf_counter()
-        subprocess.run([binary, "generate", experiment, *size, "--seed", "1", "--out", str(out)],
-                       check=True, capture_output=True, text=True)
+        subprocess.run([binary, "generate", experiment, *size, "--seed", "1", "--shards", str(shards),
+                        "--out", str(out)], check=True, capture_output=True, text=True)
         elapsed = time.perf_counter() - start
         return total / elapsed
 
@@ -92,6 +93,8 @@ def main():
         ("PyBullet exp1 loop (reference, no recording)", pybullet_exp1(args.steps)),
         ("causal-arm generate exp1 (in-process, writes bag)", ours(args.bin, "exp1", args.steps)),
         ("causal-arm generate exp2 (in-process, writes bag)", ours(args.bin, "exp2", args.steps)),
+        ("causal-arm generate exp1 --shards 2 (2 threads)", ours(args.bin, "exp1", args.steps, 2)),
+        ("causal-arm generate exp2 --shards 2 (2 threads)", ours(args.bin, "exp2", args.steps, 2)),
     ]
     if in_private_netns():
         rows.append(("causal-arm launch exp1 (3 DDS processes, lock-step)", ours_dds(args.bin, args.steps)))
@@ -101,6 +104,11 @@ def main():
     print(f"\n{'run':<52} {'steps/s':>10} {'vs PyBullet':>12}")
     for name, rate in rows:
         print(f"{name:<52} {rate:>10.0f} {rate / ref:>11.2f}x")
+    by_name = dict(rows)
+    for experiment in ["exp1", "exp2"]:
+        one = by_name[f"causal-arm generate {experiment} (in-process, writes bag)"]
+        two = by_name[f"causal-arm generate {experiment} --shards 2 (2 threads)"]
+        print(f"{experiment}: 2 shards are {two / one:.2f}x one shard")
 
 
 if __name__ == "__main__":

@@ -101,3 +101,25 @@ def test_bag_check_judges_every_shard(shard_set, run_cli, tmp_path):
         mcap.write_bytes(mcap.read_bytes()[:-300])  # cut short, as by a crash
     r = run_cli("bag", "check", broken)
     assert r.returncode != 0 and "1 of 2 shards failed" in r.stderr and "shard-0" in r.stderr, r.stderr
+
+
+def test_launch_shards_run_graphs_side_by_side_into_the_same_set(shard_set, run_cli, tmp_path, private_netns):
+    """`launch --shards 2`: two DDS graphs, shard i in domain ROS_DOMAIN_ID + i, record
+    the shard set `generate --shards 2` writes for the same seed, message for message."""
+    out = tmp_path / "launched"
+    r = run_cli("launch", "exp1", "--steps", "1201", "--seed", SEED, "--shards", "2", "--out", out,
+                env={"ROS_DOMAIN_ID": "80"}, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "2 graphs" in r.stdout, r.stdout
+    assert yaml.safe_load((out / "shard_set.yaml").read_text()) == \
+        yaml.safe_load((shard_set / "shard_set.yaml").read_text())
+    for name in ["shard-0", "shard-1"]:
+        assert _custom_data(out / name) == _custom_data(shard_set / name)
+        assert _messages(out / name) == _messages(shard_set / name), name
+
+
+def test_launch_refuses_shards_past_the_last_domain(run_cli, tmp_path, private_netns):
+    r = run_cli("launch", "exp1", "--steps", "100", "--shards", "3", "--out", tmp_path / "out",
+                env={"ROS_DOMAIN_ID": "231"})
+    assert r.returncode != 0 and "need domains up to 233" in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()

@@ -28,6 +28,19 @@ pub struct LaunchArgs {
     /// Print each node's command line (from launch_scripts/graph.toml) and exit.
     #[arg(long)]
     pub print_commands: bool,
+    /// Run N graphs side by side, shard i in ROS domain ROS_DOMAIN_ID + i, each recording
+    /// its share of the run into OUT/shard-i (a shard set, as `generate --shards`).
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    pub shards: i64,
+    /// Set by a sharded launch for each of its graphs: this graph's place in the set.
+    #[arg(long, hide = true, requires = "shard_count")]
+    pub shard_index: Option<u64>,
+    /// See `--shard-index`.
+    #[arg(long, hide = true, requires = "shard_index")]
+    pub shard_count: Option<u64>,
+    /// See `--shard-index`.
+    #[arg(long, hide = true, default_value_t = 0)]
+    pub shard_set_seed: u64,
 }
 
 /// Directory holding the node binaries (next to this executable).
@@ -95,6 +108,18 @@ pub fn node_commands(options: &GenerateOptions) -> anyhow::Result<Vec<(String, V
 /// Runs `causal-arm launch`.
 pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     let mut options = args.generate.options()?;
+    match args.shards {
+        n if n < 1 => bail!("--shards must be at least 1, got {n}"),
+        1 => {}
+        n => return crate::launch_shards::run(args, &options, n as u64, ros_args),
+    }
+    if let (Some(index), Some(count)) = (args.shard_index, args.shard_count) {
+        options.shard = Some(causal_arm_datagen::Shard {
+            index,
+            count,
+            set_seed: args.shard_set_seed,
+        });
+    }
     causal_arm_datagen::validate(&options)?;
     if args.generate.resume {
         let start = causal_arm_datagen::resume_point(&options.out, &options)

@@ -7,6 +7,7 @@ mod generate_cmd;
 mod intervene_cmd;
 mod kinematics_cmd;
 mod launch_cmd;
+mod launch_shards;
 mod play_cmd;
 mod progress;
 mod rollout_cmd;

@@ -24,7 +24,7 @@ use thiserror::Error;
 mod resume;
 mod shards;
 pub use resume::{interrupted_dir, resume_point};
-pub use shards::{Shard, generate_shards, shard_options};
+pub use shards::{Shard, generate_shards, shard_options, shard_set_manifest};
 
 /// Everything a generation run needs.
 #[derive(Debug, Clone)]

@@ -64,7 +64,7 @@ pub fn generate_shards(
     for shard in &shards {
         crate::validate(shard)?;
     }
-    manifest(options, &shards).create(&options.out, options.overwrite)?;
+    shard_set_manifest(options, &shards).create(&options.out, options.overwrite)?;
     let total = options.plan.total_steps();
     let done: Vec<AtomicU64> = shards.iter().map(|_| AtomicU64::new(0)).collect();
     let running = AtomicU64::new(shards.len() as u64);
@@ -103,7 +103,7 @@ pub fn generate_shards(
 }
 
 /// The set's manifest: the run it splits and each shard's seed.
-fn manifest(options: &GenerateOptions, shards: &[GenerateOptions]) -> ShardSet {
+pub fn shard_set_manifest(options: &GenerateOptions, shards: &[GenerateOptions]) -> ShardSet {
     let mut data = BTreeMap::from([
         (
             bag_keys::EXPERIMENT.to_owned(),

@@ -105,7 +105,7 @@ impl RunPlan {
 
 /// Seed of shard `index` of a run seeded `seed`: shard 0 keeps the run's seed (so one
 /// shard is the unsharded run), the others get decorrelated seeds that no small run seed
-/// collides with.
+/// collides with, below 2^63 so a node's integer `seed` parameter can take them.
 pub fn shard_seed(seed: u64, index: u64) -> u64 {
     match index {
         0 => seed,
@@ -114,7 +114,7 @@ pub fn shard_seed(seed: u64, index: u64) -> u64 {
             let mut z = seed ^ i.wrapping_mul(0x9E37_79B9_7F4A_7C15);
             z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
             z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
+            (z ^ (z >> 31)) >> 1
         }
     }
 }

@@ -1,7 +1,7 @@
 //! The run parameters every node of the graph takes, mapped onto the shared
 //! [`GenerateOptions`] so the graph and `causal-arm generate` agree.
 
-use causal_arm_datagen::GenerateOptions;
+use causal_arm_datagen::{GenerateOptions, Shard};
 use causal_arm_node::{ParamSpec, ParamValue, Params};
 use causal_arm_protocol::graph::graph;
 use causal_arm_protocol::{Experiment, ParamDecl, ParamDefault, Profile, RunPlan};
@@ -81,6 +81,17 @@ impl RunParams {
         options.sim.velocity_scale = params.double("velocity_scale");
         options.exp2.move_while_switching = params.bool("move_while_switching");
         options.start_step = params.integer("start_step") as u64;
+        let (index, count) = (params.integer("shard_index"), params.integer("shard_count"));
+        if count > 1 {
+            if index >= count {
+                anyhow::bail!("shard_index {index} is not a shard of a set of {count}");
+            }
+            options.shard = Some(Shard {
+                index: index as u64,
+                count: count as u64,
+                set_seed: params.integer("shard_set_seed") as u64,
+            });
+        }
         if options.start_step >= options.plan.total_steps() {
             anyhow::bail!(
                 "start_step {} is not a step of the run (it has {} steps)",
@@ -106,6 +117,12 @@ impl RunParams {
             format!("steps:={}", options.plan.steps_per_episode),
             format!("episodes:={}", options.plan.episodes),
             format!("start_step:={}", options.start_step),
+            format!("shard_index:={}", options.shard.map_or(0, |s| s.index)),
+            format!("shard_count:={}", options.shard.map_or(1, |s| s.count)),
+            format!(
+                "shard_set_seed:={}",
+                options.shard.map_or(0, |s| s.set_seed)
+            ),
         ]
     }
 

@@ -4,7 +4,8 @@
 Runs, in one go on this machine:
   * `causal-arm generate exp1` (simulator + babbler + bag writing, one process, no DDS)
   * `causal-arm generate exp2`
-  * both again with `--shards 2` (two seeded shards simulated side by side, one per core)
+  * both again with `--shards 2` (two seeded shards simulated side by side, one per core),
+    and `launch exp1 --shards 2` (two graphs in two ROS domains)
   * `causal-arm launch exp1` (simulator, babbler and recorder as three DDS processes in
     lock-step; only when run inside tests/netns-run, since it starts DDS participants)
   * a PyBullet script doing the paper's exp1 loop: pybullet_data's kuka_iiwa, random
@@ -59,7 +60,7 @@ def in_private_netns() -> bool:
         return [line.split(":")[0].strip() for line in f.readlines()[2:]] == ["lo"]
 
 
-def ours_dds(binary: str, steps: int) -> float:
+def ours_dds(binary: str, steps: int, shards: int = 1) -> float:
     """Whole `launch` wall time, including process start-up and discovery (~1 s)."""
     import os
 
@@ -67,8 +68,8 @@ def ours_dds(binary: str, steps: int) -> float:
         out = pathlib.Path(tmp) / "bag"
         env = {**os.environ, "ROS_DOMAIN_ID": "42", "RUST_LOG": "error"}
         start = time.perf_counter()
-        subprocess.run([binary, "launch", "exp1", "--steps", str(steps), "--seed", "1", "--out", str(out)],
-                       check=True, capture_output=True, text=True, env=env)
+        subprocess.run([binary, "launch", "exp1", "--steps", str(steps), "--seed", "1", "--shards", str(shards),
+                        "--out", str(out)], check=True, capture_output=True, text=True, env=env)
         return steps / (time.perf_counter() - start)
 
 
@@ -98,6 +99,7 @@ def main():
     ]
     if in_private_netns():
         rows.append(("causal-arm launch exp1 (3 DDS processes, lock-step)", ours_dds(args.bin, args.steps)))
+        rows.append(("causal-arm launch exp1 --shards 2 (2 graphs)", ours_dds(args.bin, args.steps, 2)))
     else:
         print("not inside tests/netns-run: skipping the DDS graph row")
     ref = rows[0][1]
@@ -109,6 +111,10 @@ def main():
         one = by_name[f"causal-arm generate {experiment} (in-process, writes bag)"]
         two = by_name[f"causal-arm generate {experiment} --shards 2 (2 threads)"]
         print(f"{experiment}: 2 shards are {two / one:.2f}x one shard")
+    if "causal-arm launch exp1 --shards 2 (2 graphs)" in by_name:
+        one = by_name["causal-arm launch exp1 (3 DDS processes, lock-step)"]
+        two = by_name["causal-arm launch exp1 --shards 2 (2 graphs)"]
+        print(f"launch exp1: 2 graphs are {two / one:.2f}x one graph")
 
 
 if __name__ == "__main__":

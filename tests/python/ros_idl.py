@@ -203,6 +203,46 @@ def latched_qos(depth: int = 1) -> Qos:
     )
 
 
+@dataclass
+class FloatingPointRange(IdlStruct, typename="rcl_interfaces::msg::dds_::FloatingPointRange_"):
+    from_value: t.float64 = 0.0
+    to_value: t.float64 = 0.0
+    step: t.float64 = 0.0
+
+
+@dataclass
+class IntegerRange(IdlStruct, typename="rcl_interfaces::msg::dds_::IntegerRange_"):
+    from_value: t.int64 = 0
+    to_value: t.int64 = 0
+    step: t.uint64 = 0
+
+
+@dataclass
+class ParameterDescriptor(IdlStruct, typename="rcl_interfaces::msg::dds_::ParameterDescriptor_"):
+    name: str = ""
+    type: t.uint8 = 0
+    description: str = ""
+    additional_constraints: str = ""
+    read_only: bool = False
+    dynamic_typing: bool = False
+    floating_point_range: t.sequence[FloatingPointRange, 1] = field(default_factory=list)
+    integer_range: t.sequence[IntegerRange, 1] = field(default_factory=list)
+
+
+@dataclass
+class DescribeParametersRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::DescribeParameters_Request_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    names: t.sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class DescribeParametersReply(IdlStruct, typename="rcl_interfaces::srv::dds_::DescribeParameters_Response_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    descriptors: t.sequence[ParameterDescriptor] = field(default_factory=list)
+
+
 class ServiceClient:
     """A ROS 2 service client as rmw_cyclonedds makes one, on a CycloneDDS participant."""
 

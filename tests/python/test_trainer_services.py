@@ -124,6 +124,25 @@ def test_bad_requests_get_error_replies_and_the_node_keeps_serving(clients, trai
     assert ok.success
 
 
+def test_ros2_param_describe_shows_descriptions_ranges_and_choices(trainer_node):
+    """rcl_interfaces/DescribeParameters, as `ros2 param describe /causal_arm_trainer folds profile`
+    asks it (patches/ros2-client-parameter-descriptors.diff)."""
+    from cyclonedds.domain import DomainParticipant
+
+    client = idl.ServiceClient(DomainParticipant(41), "/causal_arm_trainer/describe_parameters",
+                               idl.DescribeParametersRequest, idl.DescribeParametersReply)
+    assert client.wait_for_server(), "no describe_parameters server"
+    reply = client.call(idl.DescribeParametersRequest(names=["folds", "profile", "use_sim_time", "nope"]))
+    folds, profile, sim_time, nope = reply.descriptors
+    assert (folds.name, folds.type, folds.description) == ("folds", 2, "cross-validation folds when training")
+    assert [(r.from_value, r.to_value) for r in folds.integer_range] == [(2, 1_000_000)]
+    assert not folds.floating_point_range
+    assert (profile.type, profile.additional_constraints) == (4, "one of: paper, quick")
+    assert profile.description == "epoch budgets when training: paper or quick"
+    assert sim_time.type == 1 and "/clock" in sim_time.description
+    assert nope.type == 0
+
+
 def test_node_refuses_missing_and_corrupt_model_dirs(causal_arm_bin, model_dir, tmp_path, private_netns):
     binary = causal_arm_bin.parent / "causal_arm_trainer"
     r = subprocess.run([str(binary)], capture_output=True, text=True, timeout=30)

@@ -41,7 +41,7 @@ fn param_spec(decl: &'static ParamDecl) -> ParamSpec {
         ParamDefault::Double(v) => ParamValue::Double(*v),
         ParamDefault::String(v) => ParamValue::String(v.clone()),
     };
-    let spec = ParamSpec::new(&decl.name, default, &decl.description);
+    let spec = ParamSpec::new(&decl.name, default, &decl.description).with_choices(&decl.choices);
     match decl.range {
         Some([lo, hi]) => spec.with_range(lo, hi),
         None => spec,

@@ -109,9 +109,15 @@ impl RosNode {
             })?;
         let context =
             Context::from_domain_participant(participant).map_err(dds_err("ROS context"))?;
-        let mut options = NodeOptions::new().enable_rosout(true);
+        // The parameter services speak the mapping of the rmw the user runs, as ours do.
+        let mut options = NodeOptions::new()
+            .enable_rosout(true)
+            .parameter_service_mapping(env.service_mapping);
         for (pname, value) in params.iter() {
             options = options.declare_parameter(pname, value.to_ros());
+        }
+        for spec in specs.iter().chain([&crate::params::use_sim_time_spec()]) {
+            options = options.describe_parameter(spec.descriptor());
         }
         let mut node = context
             .new_node(node_name, options)

@@ -109,6 +109,9 @@ pub struct ParamSpec {
     pub description: &'static str,
     /// Inclusive numeric range for integer and double parameters.
     pub range: Option<(f64, f64)>,
+    /// The values a string parameter takes, for `ros2 param describe` (the node's own
+    /// parsing refuses others, naming them); empty for any.
+    pub choices: Vec<String>,
 }
 
 impl ParamSpec {
@@ -119,6 +122,7 @@ impl ParamSpec {
             default,
             description,
             range: None,
+            choices: Vec::new(),
         }
     }
 
@@ -126,6 +130,44 @@ impl ParamSpec {
     pub fn with_range(mut self, min: f64, max: f64) -> Self {
         self.range = Some((min, max));
         self
+    }
+
+    /// Names the values a string parameter takes.
+    pub fn with_choices(mut self, choices: impl IntoIterator<Item = impl Into<String>>) -> Self {
+        self.choices = choices.into_iter().map(Into::into).collect();
+        self
+    }
+
+    /// What `ros2 param describe` shows: the description, the range as rcl_interfaces'
+    /// integer or floating-point range (bounds inclusive, any step), and the choices as
+    /// the additional constraints, as an rclcpp node declaring them would.
+    pub fn descriptor(&self) -> ros2_client::parameters::ParameterDescriptor {
+        use ros2_client::parameters::{NumericRange, ParameterDescriptor};
+        let range = match (self.range, &self.default) {
+            (Some((lo, hi)), ParamValue::Integer(_)) => NumericRange::IntegerRange {
+                from_value: lo.ceil() as i64,
+                to_value: hi.floor().min(i64::MAX as f64) as i64,
+                step: 0,
+            },
+            (Some((lo, hi)), ParamValue::Double(_) | ParamValue::DoubleArray(_)) => {
+                NumericRange::FloatingPointRange {
+                    from_value: lo,
+                    to_value: hi,
+                    step: 0.0,
+                }
+            }
+            _ => NumericRange::NotSpecified,
+        };
+        let additional_constraints = match self.choices.is_empty() {
+            true => String::new(),
+            false => format!("one of: {}", self.choices.join(", ")),
+        };
+        ParameterDescriptor {
+            description: self.description.to_owned(),
+            additional_constraints,
+            range,
+            ..ParameterDescriptor::from_value(self.name, &self.default.to_ros())
+        }
     }
 }
 
@@ -528,6 +570,39 @@ mod tests {
             text.contains("steps") && text.contains("use_sim_time"),
             "{text}"
         );
+    }
+
+    #[test]
+    fn descriptors_carry_description_range_and_choices() {
+        use ros2_client::parameters::NumericRange;
+        let steps = ParamSpec::new("steps", ParamValue::Integer(5), "steps").with_range(1.0, 1e30);
+        let d = steps.descriptor();
+        assert_eq!(
+            (d.name.as_str(), d.description.as_str()),
+            ("steps", "steps")
+        );
+        assert!(matches!(
+            d.range,
+            NumericRange::IntegerRange {
+                from_value: 1,
+                to_value: i64::MAX,
+                step: 0
+            }
+        ));
+        let sigma = ParamSpec::new("sigma", ParamValue::Double(0.3), "").with_range(0.0, 10.0);
+        assert!(matches!(
+            sigma.descriptor().range,
+            NumericRange::FloatingPointRange {
+                from_value: 0.0,
+                to_value: 10.0,
+                ..
+            }
+        ));
+        let exp = ParamSpec::new("experiment", ParamValue::String("exp1".into()), "")
+            .with_choices(["exp1", "exp2"]);
+        let d = exp.descriptor();
+        assert_eq!(d.additional_constraints, "one of: exp1, exp2");
+        assert!(matches!(d.range, NumericRange::NotSpecified));
     }
 
     #[test]

@@ -574,7 +574,8 @@ impl Node {
       options.parameter_validator.take(),
       options.parameter_set_action.take(),
     )
-    .map_err(NodeCreateError::BadParameter)?;
+    .map_err(NodeCreateError::BadParameter)?
+    .with_descriptors(options.parameter_descriptors.clone());
 
     let mut node = Node {
       node_name,
@@ -656,7 +657,7 @@ impl Node {
     self.suppress_node_info_updates(true);
 
     let parameter_servers = if self.options.start_parameter_services {
-      let service_mapping = ServiceMapping::Enhanced; //TODO: parameterize
+      let service_mapping = self.options.parameter_service_mapping;
       let param_qos = |type_hash: &str| {
         service_qos
           .clone()

@@ -12,7 +12,7 @@
 //! `src/zenoh_backend/node.rs`). Fields not honored by a backend are
 //! documented as no-ops there (logged once at `debug` level).
 
-use crate::parameters::{Parameter, ParameterValue, SetParametersResult};
+use crate::parameters::{Parameter, ParameterDescriptor, ParameterValue, SetParametersResult};
 
 /// Signature of a user-supplied parameter validator / set-action callback
 /// (see [`NodeOptions::parameter_validator`] /
@@ -34,7 +34,10 @@ pub struct NodeOptions {
   pub(crate) enable_rosout_reading: bool,
   pub(crate) start_parameter_services: bool,
   pub(crate) declared_parameters: Vec<Parameter>,
+  pub(crate) parameter_descriptors: Vec<ParameterDescriptor>,
   pub(crate) allow_undeclared_parameters: bool,
+  #[cfg(feature = "dds")]
+  pub(crate) parameter_service_mapping: crate::service::ServiceMapping,
   pub(crate) parameter_validator: Option<Box<ParameterFunc>>,
   pub(crate) parameter_set_action: Option<Box<ParameterFunc>>,
 }
@@ -49,7 +52,10 @@ impl NodeOptions {
       enable_rosout_reading: false,
       start_parameter_services: true,
       declared_parameters: Vec::new(),
+      parameter_descriptors: Vec::new(),
       allow_undeclared_parameters: false,
+      #[cfg(feature = "dds")]
+      parameter_service_mapping: crate::service::ServiceMapping::Enhanced,
       parameter_validator: None,
       parameter_set_action: None,
     }
@@ -79,6 +85,18 @@ impl NodeOptions {
     }
   }
 
+  /// How the six parameter services map onto DDS topics. The default,
+  /// `Enhanced`, is what rmw_fastrtps clients (`ros2 param` on Fast DDS) speak;
+  /// a node meant for rmw_cyclonedds clients needs `Cyclone`, or those clients
+  /// never get a reply.
+  #[cfg(feature = "dds")]
+  pub fn parameter_service_mapping(self, parameter_service_mapping: crate::service::ServiceMapping) -> NodeOptions {
+    NodeOptions {
+      parameter_service_mapping,
+      ..self
+    }
+  }
+
   pub fn read_rosout(self, enable_rosout_reading: bool) -> NodeOptions {
     NodeOptions {
       enable_rosout_reading,
@@ -92,6 +110,15 @@ impl NodeOptions {
       value,
     });
     // TODO: check for duplicate parameter names
+    self
+  }
+
+  /// What `describe_parameters` answers for the declared parameter
+  /// `descriptor.name` (its description, numeric range and constraints), as
+  /// rclcpp's `declare_parameter` with a descriptor does. Without it a
+  /// parameter is described by its type alone.
+  pub fn describe_parameter(mut self, descriptor: ParameterDescriptor) -> NodeOptions {
+    self.parameter_descriptors.push(descriptor);
     self
   }
 

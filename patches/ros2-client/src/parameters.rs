@@ -198,6 +198,7 @@ impl From<SetParametersResult> for raw::SetParametersResult {
 }
 
 /// Documentation and constraints for a [`Parameter`]
+#[derive(Debug, Clone)]
 pub struct ParameterDescriptor {
   pub name: String,
   pub param_type: ParameterType, // ParameterType.msg defines enum
@@ -237,6 +238,7 @@ impl ParameterDescriptor {
 }
 
 /// Optional Limits for a numeric [`Parameter`]
+#[derive(Debug, Clone)]
 pub enum NumericRange {
   NotSpecified,
   IntegerRange {
@@ -351,6 +353,8 @@ pub(crate) struct ParameterStore {
   validator: Option<Mutex<Box<ParameterFunc>>>,
   set_action: Option<Mutex<Box<ParameterFunc>>>,
   use_sim_time: AtomicBool,
+  // What `describe` answers for a parameter, when its declarer said more than its type.
+  descriptors: BTreeMap<String, ParameterDescriptor>,
 }
 
 impl ParameterStore {
@@ -384,6 +388,7 @@ impl ParameterStore {
       validator: validator.map(Mutex::new),
       set_action: set_action.map(Mutex::new),
       use_sim_time: AtomicBool::new(false),
+      descriptors: BTreeMap::new(),
     };
     for (name, value) in &initial {
       store.check_value(name, value)?;
@@ -394,6 +399,16 @@ impl ParameterStore {
 
   pub fn allow_undeclared(&self) -> bool {
     self.allow_undeclared
+  }
+
+  /// Describe these parameters with the given descriptors (description,
+  /// range, constraints) instead of their type alone. The reported type stays
+  /// that of the current value.
+  pub fn with_descriptors(mut self, descriptors: impl IntoIterator<Item = ParameterDescriptor>) -> Self {
+    self
+      .descriptors
+      .extend(descriptors.into_iter().map(|d| (d.name.clone(), d)));
+    self
   }
 
   /// Current value of the built-in `use_sim_time` parameter.
@@ -428,9 +443,13 @@ impl ParameterStore {
     let values = self.values.lock().unwrap();
     names
       .iter()
-      .map(|name| match values.get(name) {
-        Some(value) => ParameterDescriptor::from_value(name, value),
-        None => ParameterDescriptor::unknown(name),
+      .map(|name| match (values.get(name), self.descriptors.get(name)) {
+        (Some(value), Some(declared)) => ParameterDescriptor {
+          param_type: value.to_parameter_type(),
+          ..declared.clone()
+        },
+        (Some(value), None) => ParameterDescriptor::from_value(name, value),
+        (None, _) => ParameterDescriptor::unknown(name),
       })
       .collect()
   }
@@ -696,7 +715,7 @@ pub mod raw {
 mod tests {
   use std::sync::{Arc, Mutex};
 
-  use super::{Parameter, ParameterStore, ParameterValue};
+  use super::{NumericRange, Parameter, ParameterDescriptor, ParameterStore, ParameterValue};
 
   fn param(name: &str, value: ParameterValue) -> Parameter {
     Parameter {
@@ -713,6 +732,29 @@ mod tests {
       None,
     )
     .unwrap()
+  }
+
+  #[test]
+  fn declared_descriptors_are_described_with_the_current_type() {
+    let declared = ParameterDescriptor {
+      name: "p".to_string(),
+      description: "how many".to_string(),
+      additional_constraints: "even".to_string(),
+      range: NumericRange::IntegerRange {
+        from_value: 0,
+        to_value: 10,
+        step: 0,
+      },
+      ..ParameterDescriptor::unknown("p")
+    };
+    let s = store(false).with_descriptors([declared]);
+    let names = ["p".to_string(), "use_sim_time".to_string(), "q".to_string()];
+    let [p, sim_time, q] = <[ParameterDescriptor; 3]>::try_from(s.describe(&names)).unwrap();
+    assert_eq!((p.description.as_str(), p.additional_constraints.as_str()), ("how many", "even"));
+    assert!(matches!(p.param_type, super::ParameterType::Integer));
+    assert!(matches!(p.range, NumericRange::IntegerRange { from_value: 0, to_value: 10, .. }));
+    assert!(matches!(sim_time.param_type, super::ParameterType::Bool));
+    assert!(matches!(q.param_type, super::ParameterType::NotSet));
   }
 
   #[test]

@@ -415,6 +415,7 @@ mod tests {
       QosProfile::subscription_default(),
       QosProfile::publisher_default(),
       QosProfile {
+        user_data: Vec::new(),
         reliability: Reliability::Reliable {
           when_full: WhenFull::DEFAULT,
         },

@@ -79,7 +79,8 @@ fn param_specs() -> Vec<ParamSpec> {
             "profile",
             ParamValue::String("paper".into()),
             "epoch budgets when training: paper or quick",
-        ),
+        )
+        .with_choices(["paper", "quick"]),
         ParamSpec::new(
             "epochs",
             ParamValue::Integer(-1),

@@ -169,6 +169,7 @@ pub fn decode_qos(s: &str) -> Result<QosProfile, QosDecodeError> {
   let liveliness_lease = parse_duration(lease_s, lease_ns)?;
 
   Ok(QosProfile {
+    user_data: Vec::new(),
     reliability,
     durability,
     history,
@@ -189,6 +190,7 @@ mod tests {
   // automatic, no deadline/lifespan/lease — only depth differs.
   fn keep_last(depth: usize) -> QosProfile {
     QosProfile {
+      user_data: Vec::new(),
       reliability: Reliability::Reliable {
         when_full: DECODED_WHEN_FULL,
       },
@@ -213,6 +215,7 @@ mod tests {
       keep_last(7),
       keep_last(10),
       QosProfile {
+        user_data: Vec::new(),
         reliability: Reliability::BestEffort,
         durability: Durability::TransientLocal,
         history: History::KeepAll,

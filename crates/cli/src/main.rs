@@ -10,6 +10,7 @@ mod launch_cmd;
 mod launch_shards;
 mod play_cmd;
 mod progress;
+mod reach_cmd;
 mod rollout_cmd;
 mod security_cmd;
 mod service_cmd;
@@ -55,6 +56,9 @@ enum Command {
     Train(train_cmd::TrainArgs),
     /// Mental simulation: chain a trained forward model over fresh trajectories.
     Rollout(rollout_cmd::RolloutArgs),
+    /// Drive the arm to target effector positions with the Jacobian, a learned inverse
+    /// model or babbling, and report success within 1 cm and 5 mm.
+    Reach(reach_cmd::ReachArgs),
     /// SHAP attributions of a forward model: heat map, PDPs and relevance report.
     Explain(explain_cmd::ExplainArgs),
     /// Causal ground truth: intervene on every action in states of a bag, record what changes.
@@ -106,6 +110,7 @@ fn main() -> std::process::ExitCode {
         Command::Topic(args) => topic_cmd::run(args, &ros_args),
         Command::Train(args) => train_cmd::run(args),
         Command::Rollout(args) => rollout_cmd::run(args),
+        Command::Reach(args) => reach_cmd::run(args),
         Command::Explain(args) => explain_cmd::run(args),
         Command::Intervene(args) => intervene_cmd::run(args),
         Command::Service(args) => service_cmd::run(args, &ros_args),

@@ -1,0 +1,198 @@
+//! `causal-arm reach`: drive the simulated arm to target effector positions with a
+//! controller (the Jacobian baseline, a learned inverse model, or babbling) and report
+//! how often and how fast it gets there. In process, exp 1 only for now (issue 17).
+
+use std::path::PathBuf;
+
+use anyhow::{Context as _, bail};
+use causal_arm_control::{
+    Controller, Episode, ImController, InverseModel, JacobianController, RandomController,
+    run_episode, sample_targets, summarize,
+};
+use causal_arm_kinematics::ArmModel;
+use causal_arm_msgs::srv::PredictAction_Request;
+use causal_arm_protocol::Experiment;
+use causal_arm_sim::{SimConfig, Simulator};
+use causal_arm_trainer::serve::ModelSet;
+use clap::{Args, ValueEnum};
+
+use crate::choice::choice;
+use crate::progress::Counter;
+
+/// Which policy drives the arm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ControllerKind {
+    /// Damped least squares on the URDF's Jacobian (the analytic baseline).
+    Jacobian,
+    /// The learned inverse model of --model-dir, asked for the action to an intermediate state.
+    Im,
+    /// Exp 1's random joint targets (the floor).
+    Random,
+}
+
+/// `causal-arm reach` options.
+#[derive(Debug, Args)]
+pub struct ReachArgs {
+    /// exp1 (exp2 is not built yet).
+    #[arg(value_parser = choice::<Experiment>())]
+    experiment: Experiment,
+    /// Target effector positions to reach, sampled where exp 1 babbles.
+    #[arg(long, default_value_t = 100, allow_negative_numbers = true)]
+    targets: i64,
+    /// Seed of the targets (and of the random controller).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// The policy.
+    #[arg(long, value_enum, default_value_t = ControllerKind::Jacobian)]
+    controller: ControllerKind,
+    /// Model directory of `causal-arm train` (needed by --controller im).
+    #[arg(long)]
+    model_dir: Option<PathBuf>,
+    /// The inverse model's file name in --model-dir.
+    #[arg(long, default_value = "im-mono")]
+    inverse_model: String,
+    /// Steps per target before giving up.
+    #[arg(long, default_value_t = 300, allow_negative_numbers = true)]
+    max_steps: i64,
+    /// Largest effector displacement asked for in one step, m.
+    #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
+    step: f64,
+    /// Directory for report.json.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// The exp 1 inverse model of a model directory, as the trainer node serves it. The IM
+/// may take only some next-state features (the paper's exp 1 IM takes ef(t+1) alone):
+/// `next` lists, in its input order, which state features those are.
+struct TrainedIm {
+    models: ModelSet,
+    next: Vec<usize>,
+}
+
+impl TrainedIm {
+    /// The IM `name` of `dir`, its next-state inputs read from its model file.
+    fn load(dir: &std::path::Path, name: &str) -> anyhow::Result<Self> {
+        // Reaching needs no forward model: the IM stands in for it in the set.
+        let models = ModelSet::load(dir, name, name)
+            .with_context(|| format!("loading the models in {}", dir.display()))?;
+        let file = dir.join(format!("{name}.json"));
+        let meta: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(&file)
+                .with_context(|| format!("reading {}", file.display()))?,
+        )
+        .with_context(|| format!("parsing {}", file.display()))?;
+        let state = causal_arm_dataset::state_names(Experiment::Exp1);
+        let inputs = meta["problem"]["input_names"]
+            .as_array()
+            .cloned()
+            .unwrap_or_default();
+        let next = inputs
+            .iter()
+            .filter_map(|n| n.as_str()?.strip_suffix("_next"))
+            .map(|n| {
+                state.iter().position(|s| s == n).with_context(|| {
+                    format!(
+                        "{}: input {n}_next is not an exp1 state feature",
+                        file.display()
+                    )
+                })
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        if next.is_empty() || !meta["problem"]["output_names"].to_string().contains("a0") {
+            bail!(
+                "{} is not an exp1 inverse model (inputs {inputs:?})",
+                file.display()
+            );
+        }
+        Ok(Self { models, next })
+    }
+}
+
+impl InverseModel for TrainedIm {
+    fn action(&self, state: &[f64], next_state: &[f64]) -> Result<Vec<f64>, String> {
+        let reply = self.models.predict_action(&PredictAction_Request {
+            state: state.to_vec(),
+            next_state: self.next.iter().map(|&i| next_state[i]).collect(),
+            rows: 1,
+        });
+        match reply.success {
+            true => Ok(reply.action),
+            false => Err(reply.message),
+        }
+    }
+}
+
+/// Runs `causal-arm reach`.
+pub fn run(args: &ReachArgs) -> anyhow::Result<()> {
+    if args.experiment != Experiment::Exp1 {
+        bail!("reach exp2 is not built yet: only exp1 targets (effector positions) are");
+    }
+    let (targets, max_steps) = (
+        positive(args.targets, "--targets")?,
+        positive(args.max_steps, "--max-steps")?,
+    );
+    if !(args.step.is_finite() && args.step > 0.0) {
+        bail!(
+            "--step must be a positive number of metres, got {}",
+            args.step
+        );
+    }
+    let model = ArmModel::embedded();
+    let mut controller = controller(args, &model)?;
+    let goals = sample_targets(&model, targets, 0.35, args.seed)?;
+    let mut sim = Simulator::new(SimConfig::default())?;
+    let mut counter = Counter::new(
+        targets as u64,
+        &format!("reach with {}", controller.name()),
+        "targets",
+    );
+    let mut episodes: Vec<Episode> = Vec::with_capacity(targets);
+    for (i, goal) in goals.iter().enumerate() {
+        episodes.push(run_episode(&mut sim, controller.as_mut(), goal, max_steps)?);
+        counter.set(i as u64 + 1);
+    }
+    counter.finish();
+    let summary = summarize(controller.name(), &episodes);
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let report = serde_json::json!({"summary": summary, "episodes": episodes, "seed": args.seed,
+        "max_steps": max_steps, "step_m": args.step});
+    let file = args.out.join("report.json");
+    std::fs::write(&file, serde_json::to_string_pretty(&report)?)
+        .with_context(|| format!("writing {}", file.display()))?;
+    println!(
+        "{}: {} targets, within 1 cm {:.0} %, within 5 mm {:.0} %, median steps to 1 cm {}, final error p50 {:.4} m ({})",
+        summary.controller,
+        summary.episodes,
+        100.0 * summary.success_1cm,
+        100.0 * summary.success_5mm,
+        summary
+            .median_steps_to_1cm
+            .map_or("-".into(), |s| s.to_string()),
+        summary.final_error_p10_p50_p90[1],
+        file.display()
+    );
+    Ok(())
+}
+
+fn controller(args: &ReachArgs, model: &ArmModel) -> anyhow::Result<Box<dyn Controller>> {
+    Ok(match args.controller {
+        ControllerKind::Jacobian => Box::new(JacobianController::new(model.clone(), args.step)),
+        ControllerKind::Random => Box::new(RandomController::new(model, 0.35, args.seed)?),
+        ControllerKind::Im => {
+            let dir = args.model_dir.as_ref().context(
+                "--controller im needs --model-dir (a directory written by `causal-arm train`)",
+            )?;
+            let im = TrainedIm::load(dir, &args.inverse_model)?;
+            Box::new(ImController::new(model.clone(), im, args.step))
+        }
+    })
+}
+
+fn positive(value: i64, flag: &str) -> anyhow::Result<usize> {
+    match value {
+        v if v > 0 => Ok(v as usize),
+        v => bail!("{flag} must be a positive number, got {v}"),
+    }
+}

@@ -1,0 +1,436 @@
+//! Acting with the arm: reaching a target effector position with a controller, scored as
+//! the paper's "next step" asks (issue 17). Pure logic over the simulator: reachable
+//! targets, three controllers behind one trait, and the episode loop.
+//!
+//! - [`JacobianController`]: the analytic baseline, a damped least-squares step of the
+//!   kinematics crate's Jacobian toward the target.
+//! - [`ImController`]: asks a learned inverse model IM [s(t), s*] → a for the action that
+//!   takes the state to an intermediate s*, a clipped step toward the target. The exp 1
+//!   state is (θ, ef) and θ(t+1) = θ(t) + a, so s* must be consistent: its θ* is θ plus
+//!   the joint step that moves ef by the clipped Δef (a Jacobian step), its ef* is ef + Δef.
+//!   Giving the IM θ* = θ with a moved ef would ask it for a contradiction.
+//! - [`RandomController`]: motor babbling, exp 1's random joint targets, as the floor.
+
+use causal_arm_kinematics::ArmModel;
+use causal_arm_protocol::{ARM_DOF, Command, SimState};
+use causal_arm_sim::Simulator;
+use nalgebra::{Matrix3, Vector3};
+use rand::{SeedableRng, rngs::StdRng};
+use rand_distr::{Distribution, Normal};
+
+/// Why a controller or an episode could not go on.
+#[derive(Debug, thiserror::Error)]
+pub enum ControlError {
+    /// The kinematics refused the joint values.
+    #[error("kinematics: {0}")]
+    Kinematics(String),
+    /// The simulator refused a command.
+    #[error("simulator: {0}")]
+    Sim(String),
+    /// The inverse model gave no usable action.
+    #[error("inverse model: {0}")]
+    Model(String),
+    /// Bad options, named.
+    #[error("{0}")]
+    Options(String),
+}
+
+/// Targets the arm can reach, where the models were trained: the effector positions of
+/// joint configurations drawn as exp 1's babbler draws its targets (normal with `sigma`
+/// around zero, clipped to the joint limits).
+pub fn sample_targets(
+    model: &ArmModel,
+    count: usize,
+    sigma: f64,
+    seed: u64,
+) -> Result<Vec<Vector3<f64>>, ControlError> {
+    let normal = spread(sigma)?;
+    let mut rng = StdRng::seed_from_u64(seed);
+    (0..count)
+        .map(|_| {
+            let q: Vec<f64> = (model.limits().iter())
+                .map(|l| normal.sample(&mut rng).clamp(l.lower, l.upper))
+                .collect();
+            let pose = model.ef_pose(&q).map_err(kinematics_err)?;
+            Ok(pose.translation.vector)
+        })
+        .collect()
+}
+
+/// The joint step that moves the effector by `dx` (damped least squares on the position
+/// rows of the Jacobian: Jᵀ (J Jᵀ + λ² I)⁻¹ dx).
+pub fn jacobian_step(
+    model: &ArmModel,
+    q: &[f64],
+    dx: &Vector3<f64>,
+    damping: f64,
+) -> Result<[f64; ARM_DOF], ControlError> {
+    let jacobian = model.jacobian(q).map_err(kinematics_err)?;
+    let linear = jacobian.rows(0, 3);
+    let gram = linear * linear.transpose() + Matrix3::identity() * damping * damping;
+    let solve = gram
+        .try_inverse()
+        .ok_or_else(|| ControlError::Kinematics("singular Jacobian".into()))?;
+    let dq = linear.transpose() * (solve * dx);
+    let mut out = [0.0; ARM_DOF];
+    for (o, v) in out.iter_mut().zip(dq.iter()) {
+        *o = *v;
+    }
+    Ok(out)
+}
+
+/// A reaching policy: one command per step, from the state and the target.
+pub trait Controller {
+    /// Name in reports.
+    fn name(&self) -> &str;
+    /// The command for this step.
+    fn command(&mut self, state: &SimState, target: &Vector3<f64>)
+    -> Result<Command, ControlError>;
+}
+
+/// Moves toward the target by at most `max_step` metres per step, through the Jacobian.
+pub struct JacobianController {
+    model: ArmModel,
+    /// Largest effector displacement asked for in one step, m.
+    pub max_step: f64,
+    /// Damping λ of the least-squares step.
+    pub damping: f64,
+}
+
+impl JacobianController {
+    /// A controller of `model` with the given step limit and damping 0.01.
+    pub fn new(model: ArmModel, max_step: f64) -> Self {
+        Self {
+            model,
+            max_step,
+            damping: 0.01,
+        }
+    }
+}
+
+impl Controller for JacobianController {
+    fn name(&self) -> &str {
+        "jacobian"
+    }
+
+    fn command(
+        &mut self,
+        state: &SimState,
+        target: &Vector3<f64>,
+    ) -> Result<Command, ControlError> {
+        let q = state.joint_positions;
+        let dx = clipped_step(state, target, self.max_step);
+        let dq = jacobian_step(&self.model, &q, &dx, self.damping)?;
+        Ok(joint_command(&self.model, &q, &dq))
+    }
+}
+
+/// A learned inverse model: the action a(t) that takes s(t) to s(t+1).
+pub trait InverseModel {
+    /// The action for `state` → `next_state` (exp 1: θ and ef, 10 features each).
+    fn action(&self, state: &[f64], next_state: &[f64]) -> Result<Vec<f64>, String>;
+}
+
+/// Asks an inverse model for the action toward an intermediate state each step.
+pub struct ImController<M> {
+    model: ArmModel,
+    im: M,
+    /// Largest effector displacement asked for in one step, m.
+    pub max_step: f64,
+}
+
+impl<M: InverseModel> ImController<M> {
+    /// An IM controller of `model` with the given step limit.
+    pub fn new(model: ArmModel, im: M, max_step: f64) -> Self {
+        Self {
+            model,
+            im,
+            max_step,
+        }
+    }
+
+    /// s(t) and the intermediate s* it asks the IM about (exp 1 state layout).
+    pub fn query(
+        &self,
+        state: &SimState,
+        target: &Vector3<f64>,
+    ) -> Result<(Vec<f64>, Vec<f64>), ControlError> {
+        let q = state.joint_positions;
+        let ef = state.ef_pose.translation.vector;
+        let dx = clipped_step(state, target, self.max_step);
+        let dq = jacobian_step(&self.model, &q, &dx, 0.01)?;
+        let now = q.iter().copied().chain(ef.iter().copied()).collect();
+        let goal_q = q.iter().zip(dq).map(|(a, b)| a + b);
+        let goal = goal_q.chain((ef + dx).iter().copied()).collect();
+        Ok((now, goal))
+    }
+}
+
+impl<M: InverseModel> Controller for ImController<M> {
+    fn name(&self) -> &str {
+        "im"
+    }
+
+    fn command(
+        &mut self,
+        state: &SimState,
+        target: &Vector3<f64>,
+    ) -> Result<Command, ControlError> {
+        let (now, goal) = self.query(state, target)?;
+        let action = self.im.action(&now, &goal).map_err(ControlError::Model)?;
+        if action.len() < ARM_DOF || action.iter().take(ARM_DOF).any(|a| !a.is_finite()) {
+            return Err(ControlError::Model(format!(
+                "expected {ARM_DOF} finite joint deltas, got {action:?}"
+            )));
+        }
+        let q = state.joint_positions;
+        let mut dq = [0.0; ARM_DOF];
+        dq.copy_from_slice(&action[..ARM_DOF]);
+        Ok(joint_command(&self.model, &q, &dq))
+    }
+}
+
+/// Exp 1's babbling: random joint targets, whatever the target.
+pub struct RandomController {
+    rng: StdRng,
+    normal: Normal<f64>,
+    limits: Vec<(f64, f64)>,
+}
+
+impl RandomController {
+    /// Babbling with spread `sigma`, seeded.
+    pub fn new(model: &ArmModel, sigma: f64, seed: u64) -> Result<Self, ControlError> {
+        Ok(Self {
+            rng: StdRng::seed_from_u64(seed),
+            normal: spread(sigma)?,
+            limits: model.limits().iter().map(|l| (l.lower, l.upper)).collect(),
+        })
+    }
+}
+
+impl Controller for RandomController {
+    fn name(&self) -> &str {
+        "random"
+    }
+
+    fn command(&mut self, _: &SimState, _: &Vector3<f64>) -> Result<Command, ControlError> {
+        let mut joint_targets = [0.0; ARM_DOF];
+        for (t, (lo, hi)) in joint_targets.iter_mut().zip(&self.limits) {
+            *t = self.normal.sample(&mut self.rng).clamp(*lo, *hi);
+        }
+        Ok(Command {
+            joint_targets,
+            magnet: 0,
+        })
+    }
+}
+
+/// How one reaching episode went.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Episode {
+    /// Target effector position, m.
+    pub target: [f64; 3],
+    /// Distance to the target at the start, m.
+    pub start_error: f64,
+    /// Distance at the end of the episode, m.
+    pub final_error: f64,
+    /// First step after which the effector was within 1 cm, if ever.
+    pub within_1cm_at: Option<usize>,
+    /// First step after which it was within 5 mm, if ever.
+    pub within_5mm_at: Option<usize>,
+    /// Steps run (the episode ends at 5 mm or after the step budget).
+    pub steps: usize,
+}
+
+/// Runs one episode from the simulator's home pose: at most `max_steps` commands, ending
+/// early once within 5 mm.
+pub fn run_episode(
+    sim: &mut Simulator,
+    controller: &mut dyn Controller,
+    target: &Vector3<f64>,
+    max_steps: usize,
+) -> Result<Episode, ControlError> {
+    sim.reset_episode();
+    let mut state = sim.state();
+    let distance = |s: &SimState| (s.ef_pose.translation.vector - target).norm();
+    let start_error = distance(&state);
+    let (mut within_1cm_at, mut within_5mm_at, mut steps) = (None, None, 0);
+    while steps < max_steps && within_5mm_at.is_none() {
+        let command = controller.command(&state, target)?;
+        state = sim
+            .step(&command)
+            .map_err(|e| ControlError::Sim(e.to_string()))?;
+        steps += 1;
+        let error = distance(&state);
+        if error <= 0.01 {
+            within_1cm_at.get_or_insert(steps);
+        }
+        if error <= 0.005 {
+            within_5mm_at = Some(steps);
+        }
+    }
+    Ok(Episode {
+        target: [target.x, target.y, target.z],
+        start_error,
+        final_error: distance(&state),
+        within_1cm_at,
+        within_5mm_at,
+        steps,
+    })
+}
+
+/// Success rates and error quantiles of a controller's episodes.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Summary {
+    /// Controller name.
+    pub controller: String,
+    /// Episodes run.
+    pub episodes: usize,
+    /// Share of episodes that came within 1 cm.
+    pub success_1cm: f64,
+    /// Share that came within 5 mm.
+    pub success_5mm: f64,
+    /// Median steps to 1 cm over the successful episodes.
+    pub median_steps_to_1cm: Option<usize>,
+    /// Final error quantiles (10 %, 50 %, 90 %), m.
+    pub final_error_p10_p50_p90: [f64; 3],
+}
+
+/// Summarises `episodes` of `controller`.
+pub fn summarize(controller: &str, episodes: &[Episode]) -> Summary {
+    let n = episodes.len().max(1) as f64;
+    let share = |f: fn(&Episode) -> bool| episodes.iter().filter(|e| f(e)).count() as f64 / n;
+    let mut steps: Vec<usize> = episodes.iter().filter_map(|e| e.within_1cm_at).collect();
+    steps.sort_unstable();
+    let mut errors: Vec<f64> = episodes.iter().map(|e| e.final_error).collect();
+    errors.sort_by(f64::total_cmp);
+    let quantile = |p: f64| match errors.len() {
+        0 => f64::NAN,
+        len => errors[((len - 1) as f64 * p).round() as usize],
+    };
+    Summary {
+        controller: controller.to_owned(),
+        episodes: episodes.len(),
+        success_1cm: share(|e| e.within_1cm_at.is_some()),
+        success_5mm: share(|e| e.within_5mm_at.is_some()),
+        median_steps_to_1cm: steps.get(steps.len() / 2).copied(),
+        final_error_p10_p50_p90: [quantile(0.1), quantile(0.5), quantile(0.9)],
+    }
+}
+
+/// A zero-mean normal of standard deviation `sigma`, which must be positive.
+fn spread(sigma: f64) -> Result<Normal<f64>, ControlError> {
+    match sigma.is_finite() && sigma > 0.0 {
+        true => Normal::new(0.0, sigma).map_err(|e| ControlError::Options(e.to_string())),
+        false => Err(ControlError::Options(format!(
+            "the joint spread must be a positive number of radians, got {sigma}"
+        ))),
+    }
+}
+
+fn clipped_step(state: &SimState, target: &Vector3<f64>, max_step: f64) -> Vector3<f64> {
+    let dx = target - state.ef_pose.translation.vector;
+    match dx.norm() > max_step {
+        true => dx * (max_step / dx.norm()),
+        false => dx,
+    }
+}
+
+fn joint_command(model: &ArmModel, q: &[f64; ARM_DOF], dq: &[f64; ARM_DOF]) -> Command {
+    let mut joint_targets = [0.0; ARM_DOF];
+    for (i, (t, l)) in joint_targets.iter_mut().zip(model.limits()).enumerate() {
+        *t = (q[i] + dq[i]).clamp(l.lower, l.upper);
+    }
+    Command {
+        joint_targets,
+        magnet: 0,
+    }
+}
+
+fn kinematics_err(e: impl std::fmt::Display) -> ControlError {
+    ControlError::Kinematics(e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use causal_arm_sim::SimConfig;
+
+    fn sim() -> Simulator {
+        Simulator::new(SimConfig::default()).unwrap()
+    }
+
+    #[test]
+    fn a_jacobian_step_moves_the_effector_by_the_asked_displacement() {
+        let model = ArmModel::embedded();
+        let q = [0.3, 0.5, -0.2, -1.0, 0.1, 0.7, 0.0];
+        let dx = Vector3::new(0.004, -0.003, 0.002);
+        let dq = jacobian_step(&model, &q, &dx, 1e-4).unwrap();
+        let moved: Vec<f64> = q.iter().zip(dq).map(|(a, b)| a + b).collect();
+        let before = model.ef_pose(&q).unwrap().translation.vector;
+        let after = model.ef_pose(&moved).unwrap().translation.vector;
+        assert!(
+            ((after - before) - dx).norm() < 1e-4,
+            "{:?}",
+            after - before
+        );
+    }
+
+    #[test]
+    fn targets_are_reachable_and_seeded() {
+        let model = ArmModel::embedded();
+        let a = sample_targets(&model, 5, 0.35, 1).unwrap();
+        assert_eq!(a, sample_targets(&model, 5, 0.35, 1).unwrap());
+        assert_ne!(a, sample_targets(&model, 5, 0.35, 2).unwrap());
+        assert!(sample_targets(&model, 1, -1.0, 1).is_err());
+    }
+
+    /// The exact inverse model of exp 1 (a = θ* − θ), to check the IM controller's plumbing.
+    struct ExactIm;
+    impl InverseModel for ExactIm {
+        fn action(&self, state: &[f64], next: &[f64]) -> Result<Vec<f64>, String> {
+            Ok((0..ARM_DOF).map(|i| next[i] - state[i]).collect())
+        }
+    }
+
+    #[test]
+    fn the_jacobian_and_an_exact_inverse_model_reach_and_babbling_does_not() {
+        let model = ArmModel::embedded();
+        let targets = sample_targets(&model, 12, 0.35, 7).unwrap();
+        let mut sim = sim();
+        let mut run = |controller: &mut dyn Controller| {
+            let episodes: Vec<Episode> = (targets.iter())
+                .map(|t| run_episode(&mut sim, controller, t, 300).unwrap())
+                .collect();
+            summarize(controller.name(), &episodes)
+        };
+        let jacobian = run(&mut JacobianController::new(model.clone(), 0.02));
+        let im = run(&mut ImController::new(model.clone(), ExactIm, 0.02));
+        let random = run(&mut RandomController::new(&model, 0.35, 3).unwrap());
+        assert!(jacobian.success_5mm >= 0.9, "{jacobian:?}");
+        assert!(im.success_5mm >= 0.9, "{im:?}");
+        assert!(random.success_1cm <= 0.2, "{random:?}");
+    }
+
+    #[test]
+    fn a_broken_inverse_model_is_an_error_naming_it() {
+        struct Nan;
+        impl InverseModel for Nan {
+            fn action(&self, _: &[f64], _: &[f64]) -> Result<Vec<f64>, String> {
+                Ok(vec![f64::NAN; ARM_DOF])
+            }
+        }
+        let model = ArmModel::embedded();
+        let mut sim = sim();
+        let target = Vector3::new(0.3, 0.2, 0.8);
+        let err = run_episode(
+            &mut sim,
+            &mut ImController::new(model, Nan, 0.02),
+            &target,
+            5,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("finite joint deltas"), "{err}");
+    }
+}

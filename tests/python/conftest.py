@@ -38,20 +38,24 @@ def causal_arm_bin() -> pathlib.Path:
 
 @pytest.fixture(scope="session")
 def run_cli(causal_arm_bin):
-    """Run `causal-arm ARGS…` and return the CompletedProcess (text mode, never raises)."""
+    """Run `causal-arm ARGS…` and return the CompletedProcess (text mode, never raises).
+
+    A run that outlives `timeout` is killed and returned with returncode -9 and what it
+    printed so far, ending in a line saying so, so the failing assertion shows where the
+    command stood instead of a bare TimeoutExpired."""
 
     def run(*args, input=None, timeout=120, env=None):
         full_env = dict(os.environ)
         if env:
             full_env.update(env)
-        return subprocess.run(
-            [str(causal_arm_bin), *map(str, args)],
-            input=input,
-            capture_output=True,
-            text=True,
-            timeout=timeout,
-            env=full_env,
-        )
+        command = [str(causal_arm_bin), *map(str, args)]
+        try:
+            return subprocess.run(command, input=input, capture_output=True, text=True, timeout=timeout,
+                                  env=full_env)
+        except subprocess.TimeoutExpired as e:
+            text = lambda b: b.decode(errors="replace") if isinstance(b, bytes) else (b or "")
+            stderr = text(e.stderr) + f"\n[test harness: killed after {timeout} s: {' '.join(command)}]"
+            return subprocess.CompletedProcess(command, -9, text(e.stdout), stderr)
 
     return run
 

@@ -11,10 +11,10 @@ use causal_arm_explainer::influence::{
 };
 use causal_arm_explainer::multistep;
 use causal_arm_explainer::output::{Written, write_all};
-use causal_arm_explainer::report::DEFAULT_THRESHOLD;
 use causal_arm_explainer::{
     BackgroundKind, Explainer, Explanation, Method, Relevance, Settings, calibrated_relevance,
 };
+use causal_arm_protocol::graph::server_default_text;
 use causal_arm_scoring::EdgeClaims;
 use causal_arm_trainer::load_model;
 use causal_arm_truth::{Truth, check_names, score_claims, score_table};
@@ -58,6 +58,13 @@ impl ExplainMethod {
     }
 }
 
+/// The explainer node's default of a setting `explain` shares with it (its declaration in
+/// launch_scripts/graph.toml), so the command and the node cannot disagree. The method
+/// is not shared: the command defaults to the paper's Deep SHAP, the node to Kernel SHAP.
+fn explainer_default(param: &str) -> &'static str {
+    server_default_text("causal_arm_explainer", param)
+}
+
 /// Arguments of `causal-arm explain`.
 #[derive(Debug, Args)]
 pub struct ExplainArgs {
@@ -65,7 +72,7 @@ pub struct ExplainArgs {
     #[arg(long)]
     model: PathBuf,
     /// Forward model file stem in the model directory.
-    #[arg(long, default_value = "fm")]
+    #[arg(long, default_value = explainer_default("forward_model"))]
     name: String,
     /// Bag(s) the observations and the background are drawn from (the paper: the
     /// training data).
@@ -77,7 +84,7 @@ pub struct ExplainArgs {
     #[arg(long, default_value = "deep", value_parser = choice::<ExplainMethod>())]
     method: ExplainMethod,
     /// Observations to explain (the paper: 200).
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value = explainer_default("samples"))]
     samples: usize,
     /// Background rows (deep, default 100) or k-means centres (kernel, default 50).
     #[arg(long)]
@@ -92,14 +99,14 @@ pub struct ExplainArgs {
     kernel_samples: Option<usize>,
     /// Relevance threshold: an action drives a state feature when its mean |SHAP| reaches
     /// this fraction of the feature's standard deviation.
-    #[arg(allow_negative_numbers = true, long, default_value_t = DEFAULT_THRESHOLD)]
+    #[arg(allow_negative_numbers = true, long, default_value = explainer_default("threshold"))]
     threshold: f64,
     /// Action columns: realized or commanded (default: what the model was trained on,
     /// from metrics.json, else realized).
     #[arg(long, value_parser = choice::<ActionSource>())]
     action: Option<ActionSource>,
     /// Seed of the observation/background draws and of Kernel SHAP's sampler.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value = explainer_default("seed"))]
     seed: u64,
     /// Worker threads (default: all cores).
     #[arg(long)]
@@ -116,10 +123,10 @@ pub struct ExplainArgs {
     #[arg(long)]
     truth: Option<PathBuf>,
     /// Calibrated rule: an edge needs the lower bound of mean effect / model error above this.
-    #[arg(allow_negative_numbers = true, long, default_value_t = InfluenceSettings::default().kappa)]
+    #[arg(allow_negative_numbers = true, long, default_value = explainer_default("kappa"))]
     kappa: f64,
     /// CAI: draws of each action from its marginal per observation.
-    #[arg(long, default_value_t = InfluenceSettings::default().resamples)]
+    #[arg(long, default_value = explainer_default("resamples"))]
     resamples: usize,
     /// With --method cai: attribute a(t) on s(t+1) … s(t+K) through the forward model
     /// chained K steps (1–10) with the recorded actions after a(t); writes multistep.json
@@ -584,4 +591,40 @@ fn write_multistep(
         eprintln!("wrote {} and .svg", png.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use causal_arm_explainer::report::DEFAULT_THRESHOLD;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: ExplainArgs,
+    }
+
+    #[test]
+    fn shared_defaults_are_the_explainer_nodes_and_the_librarys() {
+        let cli = Cli::parse_from(["explain", "--model", "m", "--bag", "b"]);
+        let a = cli.args;
+        let influence = InfluenceSettings::default();
+        assert_eq!(a.name, "fm");
+        assert_eq!(a.samples, 200);
+        assert_eq!(a.threshold, DEFAULT_THRESHOLD);
+        assert_eq!(a.kappa, influence.kappa);
+        assert_eq!(a.resamples, influence.resamples);
+        assert_eq!(a.seed, 0);
+        for param in [
+            "forward_model",
+            "samples",
+            "threshold",
+            "kappa",
+            "resamples",
+            "seed",
+        ] {
+            assert!(!explainer_default(param).is_empty(), "{param}");
+        }
+    }
 }

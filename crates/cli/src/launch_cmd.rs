@@ -105,6 +105,45 @@ pub fn node_commands(options: &GenerateOptions) -> anyhow::Result<Vec<(String, V
         .collect())
 }
 
+/// Starts each node process of `commands`, in order. Each gets SIGTERM (and finalizes, as
+/// on Ctrl-C) if the launcher dies, even by SIGKILL, so no node outlives its launcher.
+fn spawn_nodes(commands: Vec<(String, Vec<String>)>) -> anyhow::Result<Vec<(String, Child)>> {
+    let mut children = Vec::new();
+    for (name, args) in commands {
+        let mut command = Command::new(node_binary(&name)?);
+        command.args(&args).stdin(Stdio::null());
+        // SAFETY: prctl is async-signal-safe and touches only the child being started.
+        unsafe {
+            command.pre_exec(|| {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
+        let child = command
+            .spawn()
+            .with_context(|| format!("starting {name}"))?;
+        children.push((name, child));
+    }
+    Ok(children)
+}
+
+/// Interrupts every node still running and waits up to 10 s for it to finalize, then
+/// kills it.
+fn stop_nodes(children: &mut [(String, Child)]) -> anyhow::Result<()> {
+    for (_, child) in children {
+        if child.try_wait()?.is_none() {
+            interrupt(child);
+        }
+        if wait_with_timeout(child, Duration::from_secs(10))?.is_none() {
+            child.kill()?;
+            child.wait()?;
+        }
+    }
+    Ok(())
+}
+
 /// Runs `causal-arm launch`.
 pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     let mut options = args.generate.options()?;
@@ -154,26 +193,7 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     }
     let stop = causal_arm_node::runtime::stop_flag();
 
-    let mut children = Vec::new();
-    for (name, args) in commands {
-        let mut command = Command::new(node_binary(&name)?);
-        command.args(&args).stdin(Stdio::null());
-        // SAFETY: prctl is async-signal-safe and touches only the child being started.
-        // The node gets SIGTERM (and finalizes, as on Ctrl-C) if the launcher dies, even
-        // by SIGKILL, so no node outlives its launcher.
-        unsafe {
-            command.pre_exec(|| {
-                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
-                    return Err(std::io::Error::last_os_error());
-                }
-                Ok(())
-            });
-        }
-        let child = command
-            .spawn()
-            .with_context(|| format!("starting {name}"))?;
-        children.push((name, child));
-    }
+    let mut children = spawn_nodes(commands)?;
     let ends_run = graph()?
         .nodes
         .iter()
@@ -183,15 +203,7 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let outcome = follow_run(&options, ros_args, &stop, &mut recorder, &mut children);
     // Whatever ended the run, no node outlives it.
-    for (_, child) in &mut children {
-        if child.try_wait()?.is_none() {
-            interrupt(child);
-        }
-        if wait_with_timeout(child, Duration::from_secs(10))?.is_none() {
-            child.kill()?;
-            child.wait()?;
-        }
-    }
+    stop_nodes(&mut children)?;
     let recorder_status = outcome?;
     if !recorder_status.success() {
         bail!("{recorder_name} failed ({recorder_status})");

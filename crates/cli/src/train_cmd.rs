@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::bail;
 use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Dataset, Experiment, load_bags};
+use causal_arm_protocol::graph::server_default_text;
 use causal_arm_trainer::fit::{Progress, ProgressLog};
 use causal_arm_trainer::job::{SavedRun, train_and_save};
 use causal_arm_trainer::problems::FmTarget;
@@ -17,6 +18,12 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::choice::choice;
 use crate::progress::PLAIN_EVERY;
 
+/// The trainer node's default of a setting `train` shares with it (its declaration in
+/// launch_scripts/graph.toml), so the command and the node cannot disagree.
+fn trainer_default(param: &str) -> &'static str {
+    server_default_text("causal_arm_trainer", param)
+}
+
 /// Arguments of `causal-arm train`.
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -25,16 +32,16 @@ pub struct TrainArgs {
     bags: Vec<PathBuf>,
     /// fm, im-mono, im-pre, ablation, fm-factored (needs --graph), or all (every model of
     /// the bag's experiment).
-    #[arg(long, default_value = "all", value_parser = choice::<ModelRequest>())]
+    #[arg(long, default_value = trainer_default("models"), value_parser = choice::<ModelRequest>())]
     model: ModelRequest,
     /// Epoch budgets: paper (60-4,000 epochs) or quick.
-    #[arg(long, default_value = "paper", value_parser = choice::<Profile>())]
+    #[arg(long, default_value = trainer_default("profile"), value_parser = choice::<Profile>())]
     profile: Profile,
     /// Epochs of every network (overrides the profile).
     #[arg(long)]
     epochs: Option<usize>,
     /// Cross-validation folds.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value = trainer_default("folds"))]
     folds: usize,
     /// Run only the first N folds (each still holds out 1/folds of the rows).
     #[arg(long)]
@@ -63,14 +70,14 @@ pub struct TrainArgs {
     /// Learning-rate schedule: constant (the paper's), cosine (decay to 1 % over the
     /// epochs) or cosine:FLOOR. Cosine wins on paper-size runs, constant on short ones
     /// (docs/RESULTS.md, "Learning-rate schedule").
-    #[arg(long, default_value = "constant")]
+    #[arg(long, default_value = trainer_default("lr_schedule"))]
     lr_schedule: String,
     /// Measure the held-out MAE every N epochs: a learning curve per network, printed and
     /// stored in metrics.json (costs one pass over the fold's test rows each time).
     #[arg(long)]
     eval_every: Option<usize>,
     /// Seed of folds, weights and shuffles.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value = trainer_default("seed"))]
     seed: u64,
     /// Dataset cache directory (default: $CAUSAL_ARM_CACHE or ~/.cache/causal-arm).
     #[arg(long)]
@@ -391,4 +398,31 @@ fn print_results(data: &Dataset, options: &TrainOptions, saved: &SavedRun) {
         options.folds
     );
     print_table(&saved.figures);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: TrainArgs,
+    }
+
+    #[test]
+    fn shared_defaults_are_the_trainer_nodes_and_the_librarys() {
+        let cli = Cli::parse_from(["train", "--bag", "b", "--out", "o"]);
+        let a = cli.args;
+        let library = TrainOptions::default();
+        assert_eq!(a.model, ModelRequest::All);
+        assert_eq!(a.profile, library.profile);
+        assert_eq!(a.folds, library.folds);
+        assert_eq!(a.seed, library.seed);
+        assert_eq!(
+            a.lr_schedule.parse::<LrSchedule>().unwrap(),
+            library.lr_schedule
+        );
+    }
 }

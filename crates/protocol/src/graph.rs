@@ -25,6 +25,11 @@ pub struct GraphSpec {
     pub run_params: Vec<ParamDecl>,
     /// The nodes, in start order.
     pub nodes: Vec<NodeDecl>,
+    /// The serving nodes (trainer, explainer): started by the user on a model directory,
+    /// not by `launch`. Their parameters are declared here, and `causal-arm train` and
+    /// `explain` take the defaults of the same settings from these declarations.
+    #[serde(default)]
+    pub servers: Vec<NodeDecl>,
 }
 
 /// One node of the graph.
@@ -77,6 +82,8 @@ pub enum ParamDefault {
     Double(f64),
     /// Text.
     String(String),
+    /// A list of texts (`[]` for none).
+    StringArray(Vec<String>),
 }
 
 impl std::fmt::Display for ParamDefault {
@@ -87,6 +94,7 @@ impl std::fmt::Display for ParamDefault {
             Self::Integer(v) => write!(f, "{v}"),
             Self::Double(v) => write!(f, "{v:?}"),
             Self::String(v) => f.write_str(v),
+            Self::StringArray(v) => write!(f, "[{}]", v.join(", ")),
         }
     }
 }
@@ -147,6 +155,18 @@ impl GraphSpec {
             }
             check_params(&node.name, self.run_params.iter().chain(&node.params))?;
         }
+        for server in &self.servers {
+            if !names.insert(server.name.as_str()) {
+                return Err(format!("node {} is listed twice", server.name));
+            }
+            if server.ends_run || !server.subscribes.is_empty() || !server.publishes.is_empty() {
+                return Err(format!(
+                    "server {}: a server takes only parameters (it is not part of a run)",
+                    server.name
+                ));
+            }
+            check_params(&server.name, server.params.iter())?;
+        }
         if self.nodes.iter().filter(|n| n.ends_run).count() != 1 {
             return Err("exactly one node must have ends_run = true".into());
         }
@@ -161,6 +181,16 @@ impl GraphSpec {
     /// The node `name`.
     pub fn node(&self, name: &str) -> Option<&NodeDecl> {
         self.nodes.iter().find(|n| n.name == name)
+    }
+
+    /// The serving node `name`.
+    pub fn server(&self, name: &str) -> Option<&NodeDecl> {
+        self.servers.iter().find(|n| n.name == name)
+    }
+
+    /// Parameter `param` of serving node `server`, or `None` if it declares none such.
+    pub fn server_param(&self, server: &str, param: &str) -> Option<&ParamDecl> {
+        self.server(server)?.params.iter().find(|p| p.name == param)
     }
 
     /// The nodes that subscribe `topic`: the readers a publisher must see matched before
@@ -226,6 +256,29 @@ pub fn run_default_text(name: &str) -> &'static str {
         .iter()
         .find(|(n, _)| n == name)
         .map(|(_, v)| v.as_str())
+        .unwrap_or("")
+}
+
+/// The embedded graph's default of parameter `param` of serving node `server`, as text
+/// (the default of the command-line option for the same setting). A missing name is a
+/// build bug, caught by the tests of the commands that ask.
+pub fn server_default_text(server: &str, param: &str) -> &'static str {
+    static TEXTS: LazyLock<Vec<(String, String, String)>> = LazyLock::new(|| match graph() {
+        Ok(g) => g
+            .servers
+            .iter()
+            .flat_map(|s| {
+                s.params
+                    .iter()
+                    .map(|p| (s.name.clone(), p.name.clone(), p.default.to_string()))
+            })
+            .collect(),
+        Err(_) => Vec::new(),
+    });
+    TEXTS
+        .iter()
+        .find(|(s, p, _)| s == server && p == param)
+        .map(|(_, _, v)| v.as_str())
         .unwrap_or("")
 }
 

@@ -2,9 +2,9 @@
 //! [`GenerateOptions`] so the graph and `causal-arm generate` agree.
 
 use causal_arm_datagen::{GenerateOptions, Shard};
-use causal_arm_node::{ParamSpec, ParamValue, Params};
+use causal_arm_node::{ParamSpec, Params};
 use causal_arm_protocol::graph::graph;
-use causal_arm_protocol::{Experiment, ParamDecl, ParamDefault, Profile, RunPlan};
+use causal_arm_protocol::{Experiment, Profile, RunPlan};
 
 /// How many readers of `topic` the graph file declares, leaving out the recorder (the
 /// node publishing its acknowledgements) when the run is not recorded: a node publishing
@@ -29,23 +29,8 @@ pub fn node_param_specs(node: &str) -> anyhow::Result<Vec<ParamSpec>> {
         .run_params
         .iter()
         .chain(&decl.params)
-        .map(param_spec)
+        .map(ParamSpec::from)
         .collect())
-}
-
-/// One declaration as the node plumbing takes it.
-fn param_spec(decl: &'static ParamDecl) -> ParamSpec {
-    let default = match &decl.default {
-        ParamDefault::Bool(v) => ParamValue::Bool(*v),
-        ParamDefault::Integer(v) => ParamValue::Integer(*v),
-        ParamDefault::Double(v) => ParamValue::Double(*v),
-        ParamDefault::String(v) => ParamValue::String(v.clone()),
-    };
-    let spec = ParamSpec::new(&decl.name, default, &decl.description).with_choices(&decl.choices);
-    match decl.range {
-        Some([lo, hi]) => spec.with_range(lo, hi),
-        None => spec,
-    }
 }
 
 /// Validated run parameters.

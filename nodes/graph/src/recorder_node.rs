@@ -4,7 +4,7 @@
 //! are reported, not silently dropped. A step is acknowledged to the simulator only once
 //! its chunk is closed and handed to the OS, so even a SIGKILL loses no acknowledged step.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::rc::Rc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -16,7 +16,7 @@ use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::{LatchedMessages, StepJoiner, time_from_ns, topics};
-use ros2_client::Subscription;
+use ros2_client::{Publisher, Subscription};
 
 use crate::feed::{drain_or_wait, refusal_summary};
 use crate::parts::{RecordParts, record_feeds};
@@ -59,6 +59,28 @@ impl LatchedFeed {
     }
 }
 
+/// The bag of the run: a new one, or the cut-short one at `output` continued from the
+/// run's start step.
+fn open_sink(output: &Path, overwrite: bool, run: &RunParams) -> anyhow::Result<BagSink> {
+    Ok(match run.options.start_step {
+        0 => BagSink::create(output, overwrite, &run.options)?,
+        start => BagSink::resume(output, &run.options, Some(start))?.0,
+    })
+}
+
+/// Tells the simulator that every step up to `landed` is safe in the bag, once per stamp.
+fn acknowledge(ack: &Publisher<Clock>, acked: &mut Option<u64>, landed: Option<u64>) {
+    if let Some(stamp) = landed
+        && *acked != Some(stamp)
+    {
+        // A lost acknowledgement is repeated by the next one; the bag is what counts.
+        let _ = ack.publish(Clock {
+            clock: time_from_ns(stamp),
+        });
+        *acked = Some(stamp);
+    }
+}
+
 /// Runs the recorder node until every step is written or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let specs = node_param_specs("causal_arm_recorder")?;
@@ -77,14 +99,11 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
 
     let start = run.options.start_step;
-    let mut sink = match start {
-        0 => BagSink::create(
-            &PathBuf::from(&output),
-            node.params().bool("overwrite"),
-            &run.options,
-        )?,
-        _ => BagSink::resume(&PathBuf::from(&output), &run.options, Some(start))?.0,
-    };
+    let mut sink = open_sink(
+        &PathBuf::from(&output),
+        node.params().bool("overwrite"),
+        &run,
+    )?;
     let total = run.options.plan.total_steps();
     let mut joiner = StepJoiner::<RecordParts>::new();
     // A resumed bag already holds the latched messages.
@@ -117,14 +136,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         if sink.unlanded_steps() >= land_every || (!arrived && sink.unlanded_steps() > 0) {
             sink.land()?;
         }
-        if let Some(stamp) = sink.landed_stamp()
-            && acked != Some(stamp)
-        {
-            let _ = ack.publish(Clock {
-                clock: time_from_ns(stamp),
-            });
-            acked = Some(stamp);
-        }
+        acknowledge(&ack, &mut acked, sink.landed_stamp());
         if arrived {
             last_activity = Instant::now();
         } else if last_activity.elapsed() > timeout {
@@ -146,13 +158,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let summary = sink.finish()?;
     // Every step has landed now: acknowledge the last one, and give reliable delivery time
     // to reach the simulator.
-    if let Some(stamp) = last_written
-        && acked != Some(stamp)
-    {
-        let _ = ack.publish(Clock {
-            clock: time_from_ns(stamp),
-        });
-    }
+    acknowledge(&ack, &mut acked, last_written);
     std::thread::sleep(Duration::from_millis(300));
     tracing::info!(
         "wrote {} ({written} steps of {total})",

@@ -17,4 +17,6 @@ pub mod runtime;
 
 pub use env::{DiscoveryRange, EnvError, RosEnv};
 pub use node::{NodeError, RosNode};
-pub use params::{ParamError, ParamKind, ParamSpec, ParamValue, Params, RosArgs};
+pub use params::{
+    ParamError, ParamKind, ParamSpec, ParamValue, Params, RosArgs, server_param_specs,
+};

@@ -8,6 +8,8 @@
 use std::collections::BTreeMap;
 use std::fmt;
 
+use causal_arm_protocol::graph::GraphError;
+use causal_arm_protocol::{ParamDecl, ParamDefault};
 use thiserror::Error;
 
 /// Type of a declared parameter (the ROS 2 parameter types the project uses).
@@ -169,6 +171,35 @@ impl ParamSpec {
             ..ParameterDescriptor::from_value(self.name, &self.default.to_ros())
         }
     }
+}
+
+impl From<&'static ParamDecl> for ParamSpec {
+    /// A declaration of the graph file (launch_scripts/graph.toml), as a node declares it.
+    fn from(decl: &'static ParamDecl) -> Self {
+        let default = match &decl.default {
+            ParamDefault::Bool(v) => ParamValue::Bool(*v),
+            ParamDefault::Integer(v) => ParamValue::Integer(*v),
+            ParamDefault::Double(v) => ParamValue::Double(*v),
+            ParamDefault::String(v) => ParamValue::String(v.clone()),
+            ParamDefault::StringArray(v) => ParamValue::StringArray(v.clone()),
+        };
+        let spec = Self::new(&decl.name, default, &decl.description).with_choices(&decl.choices);
+        match decl.range {
+            Some([lo, hi]) => spec.with_range(lo, hi),
+            None => spec,
+        }
+    }
+}
+
+/// The parameters of serving node `server` (trainer, explainer), as the graph file
+/// declares them.
+pub fn server_param_specs(server: &str) -> Result<Vec<ParamSpec>, GraphError> {
+    let graph = causal_arm_protocol::graph::graph()?;
+    let decl = graph.server(server).ok_or_else(|| GraphError {
+        source_name: "the graph file".into(),
+        problem: format!("it declares no server {server}"),
+    })?;
+    Ok(decl.params.iter().map(ParamSpec::from).collect())
 }
 
 /// Every node has `use_sim_time`, as in ROS 2.

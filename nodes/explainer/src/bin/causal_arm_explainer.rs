@@ -10,7 +10,6 @@ use std::time::{Instant, SystemTime};
 use anyhow::bail;
 use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
 use causal_arm_explainer::influence::InfluenceSettings;
-use causal_arm_explainer::report::DEFAULT_THRESHOLD;
 use causal_arm_explainer::serve::{ExplainService, relevance_msg};
 use causal_arm_explainer::verdicts::shap_and_cai_claims;
 use causal_arm_explainer::{
@@ -21,7 +20,7 @@ use causal_arm_msgs::msg::Relevance as RelevanceMsg;
 use causal_arm_msgs::srv::Explain;
 use causal_arm_msgs::std_msgs::msg::Header;
 use causal_arm_node::run::{Served, node_main, serve_until_stopped, stop_flag};
-use causal_arm_node::{ParamSpec, ParamValue, Params, RosArgs, RosNode, qos};
+use causal_arm_node::{Params, RosArgs, RosNode, qos, server_param_specs};
 use causal_arm_trainer::load_model;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
@@ -39,63 +38,6 @@ fn now() -> Time {
         sec: t.as_secs() as i32,
         nanosec: t.subsec_nanos(),
     }
-}
-
-/// The node's parameters.
-fn param_specs() -> Vec<ParamSpec> {
-    let influence = InfluenceSettings::default();
-    vec![
-        ParamSpec::new(
-            "model_dir",
-            ParamValue::String(String::new()),
-            "directory written by `causal-arm train --out`",
-        ),
-        ParamSpec::new(
-            "forward_model",
-            ParamValue::String("fm".into()),
-            "forward model file stem in model_dir",
-        ),
-        ParamSpec::new(
-            "bag",
-            ParamValue::String(String::new()),
-            "bag the observations and background are drawn from (e.g. the training bag)",
-        ),
-        ParamSpec::new(
-            "method",
-            ParamValue::String("kernel".into()),
-            "SHAP method of the published report, united with CAI into its verdicts (<method>+cai): deep or kernel",
-        ),
-        ParamSpec::new(
-            "samples",
-            ParamValue::Integer(200),
-            "observations of the relevance report (SHAP and CAI alike)",
-        )
-        .with_range(1.0, 100_000.0),
-        ParamSpec::new(
-            "threshold",
-            ParamValue::Double(DEFAULT_THRESHOLD),
-            "SHAP part of the verdicts: a fraction of each state feature's one-step change std",
-        )
-        .with_range(1e-12, 1e6),
-        ParamSpec::new(
-            "kappa",
-            ParamValue::Double(influence.kappa),
-            "CAI part of the verdicts: the bootstrap lower bound of effect / model error must exceed it",
-        )
-        .with_range(1e-6, 1e6),
-        ParamSpec::new(
-            "resamples",
-            ParamValue::Integer(influence.resamples as i64),
-            "CAI: draws of each action per observation",
-        )
-        .with_range(2.0, 100_000.0),
-        ParamSpec::new("seed", ParamValue::Integer(0), "seed of the draws").with_range(0.0, 1e15),
-        ParamSpec::new(
-            "cache",
-            ParamValue::String(String::new()),
-            "dataset cache directory (empty: $CAUSAL_ARM_CACHE or ~/.cache/causal-arm)",
-        ),
-    ]
 }
 
 /// The relevance report of `explainer` on `data` as `causal-arm explain --method <method>`
@@ -140,7 +82,11 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     // First of all: a SIGINT that arrives while the node starts up must not be lost (a
     // background job of a non-interactive shell starts with SIGINT ignored until then).
     let stop = stop_flag();
-    let mut node = RosNode::new("causal_arm_explainer", &param_specs(), ros_args)?;
+    let mut node = RosNode::new(
+        "causal_arm_explainer",
+        &server_param_specs("causal_arm_explainer")?,
+        ros_args,
+    )?;
     let params = node.params();
     let (dir, bag) = (params.string("model_dir"), params.string("bag"));
     if dir.is_empty() || bag.is_empty() {

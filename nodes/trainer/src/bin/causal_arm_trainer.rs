@@ -14,7 +14,7 @@ use anyhow::{anyhow, bail};
 use causal_arm_dataset::{ActionSource, Cache, load_bags};
 use causal_arm_msgs::srv::{GetModelInfo, PredictAction, PredictNextState, Rollout};
 use causal_arm_node::run::{Served, node_main, serve_until_stopped, stop_flag};
-use causal_arm_node::{ParamSpec, ParamValue, RosArgs, RosNode};
+use causal_arm_node::{RosArgs, RosNode, server_param_specs};
 use causal_arm_trainer::fit::ProgressLog;
 use causal_arm_trainer::job::train_and_save;
 use causal_arm_trainer::serve::ModelSet;
@@ -31,7 +31,11 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     // First of all: a SIGINT that arrives while the node starts up must not be lost (a
     // background job of a non-interactive shell starts with SIGINT ignored until then).
     let stop = stop_flag();
-    let mut node = RosNode::new("causal_arm_trainer", &param_specs(), ros_args)?;
+    let mut node = RosNode::new(
+        "causal_arm_trainer",
+        &server_param_specs("causal_arm_trainer")?,
+        ros_args,
+    )?;
     let dir = node.params().string("model_dir").to_owned();
     if dir.is_empty() {
         bail!(
@@ -54,77 +58,6 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         node.params().string("inverse_model"),
     )?;
     serve(&mut node, &models, &dir, &stop)
-}
-
-/// The node's parameters: where the models are and, to train them first, from which
-/// bags and how.
-fn param_specs() -> Vec<ParamSpec> {
-    vec![
-        ParamSpec::new(
-            "model_dir",
-            ParamValue::String(String::new()),
-            "directory written by `causal-arm train --out`",
-        ),
-        ParamSpec::new(
-            "bag",
-            ParamValue::StringArray(Vec::new()),
-            "bag directories to train from first, e.g. [bags/a, bags/b] (empty: only load model_dir)",
-        ),
-        ParamSpec::new(
-            "models",
-            ParamValue::String("all".into()),
-            "models to train: fm, im-mono, im-pre, ablation or all",
-        ),
-        ParamSpec::new(
-            "profile",
-            ParamValue::String("paper".into()),
-            "epoch budgets when training: paper or quick",
-        )
-        .with_choices(["paper", "quick"]),
-        ParamSpec::new(
-            "epochs",
-            ParamValue::Integer(-1),
-            "epochs of every network when training (-1: the profile's)",
-        )
-        .with_range(-1.0, 1e9),
-        ParamSpec::new(
-            "folds",
-            ParamValue::Integer(5),
-            "cross-validation folds when training",
-        )
-        .with_range(2.0, 1e6),
-        ParamSpec::new(
-            "max_folds",
-            ParamValue::Integer(-1),
-            "train only the first N folds (-1: all)",
-        )
-        .with_range(-1.0, 1e6),
-        ParamSpec::new(
-            "lr_schedule",
-            ParamValue::String("constant".into()),
-            "learning-rate schedule: constant, cosine or cosine:FLOOR",
-        ),
-        ParamSpec::new(
-            "seed",
-            ParamValue::Integer(0),
-            "seed of folds, weights and shuffles",
-        ),
-        ParamSpec::new(
-            "cache",
-            ParamValue::String(String::new()),
-            "dataset cache directory (empty: $CAUSAL_ARM_CACHE or ~/.cache/causal-arm)",
-        ),
-        ParamSpec::new(
-            "forward_model",
-            ParamValue::String("fm".into()),
-            "model file serving predict_next_state and rollout",
-        ),
-        ParamSpec::new(
-            "inverse_model",
-            ParamValue::String("im-mono".into()),
-            "model file serving predict_action",
-        ),
-    ]
 }
 
 /// Answers the four services from `models` until SIGINT or shutdown; every request gets a

@@ -335,3 +335,32 @@ def gid_of(entity) -> Gid:
 @dataclass
 class Clock(IdlStruct, typename="rosgraph_msgs::msg::dds_::Clock_"):
     clock: Time = field(default_factory=Time)
+
+
+@dataclass
+class RosString(IdlStruct, typename="std_msgs::msg::dds_::String_"):
+    """std_msgs/msg/String (e.g. /robot_description)."""
+    data: str = ""
+
+
+@dataclass
+class ColorRGBA(IdlStruct, typename="std_msgs::msg::dds_::ColorRGBA_"):
+    r: t.float32 = 0.0
+    g: t.float32 = 0.0
+    b: t.float32 = 0.0
+    a: t.float32 = 0.0
+
+
+@dataclass
+class ObjectColor(IdlStruct, typename="causal_arm_msgs::msg::dds_::ObjectColor_"):
+    """causal_arm_msgs/msg/ObjectColor, written from msgs/msg/ObjectColor.msg."""
+    header: Header = field(default_factory=Header)
+    color: ColorRGBA = field(default_factory=ColorRGBA)
+
+
+@dataclass
+class MagnetState(IdlStruct, typename="causal_arm_msgs::msg::dds_::MagnetState_"):
+    """causal_arm_msgs/msg/MagnetState, written from msgs/msg/MagnetState.msg."""
+    header: Header = field(default_factory=Header)
+    on: bool = False
+    holding: bool = False

@@ -55,10 +55,10 @@ pub struct ReachArgs {
     #[arg(long, default_value_t = 300, allow_negative_numbers = true)]
     max_steps: i64,
     /// Effector displacement asked for in one step, m. The IM is always asked for a step
-    /// of this length and its action scaled down near the target. Asked for short steps
-    /// the paper-profile IM drifts away (docs/runs/reach/exp1_100_targets.txt: 0 % at
-    /// 2 cm, 84-91 % at 5-10 cm).
-    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
+    /// of this length and its action scaled down near the target. The best length depends
+    /// on the model (docs/runs/reach/exp1_100_targets.txt, within 1 cm: the paper-profile
+    /// IM 84 % at 5 cm, 91 % at 10 cm; a 30-epoch IM 70 % and 27 %; both 0 % at 2 cm).
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     step: f64,
     /// Directory for report.json.
     #[arg(long)]

@@ -28,6 +28,15 @@ def test_the_jacobian_controller_reaches_and_babbling_does_not(run_cli, tmp_path
     assert random["success_1cm"] <= 0.3, random
 
 
+def test_targets_of_ones_own_are_reached(run_cli, tmp_path):
+    out = tmp_path / "own"
+    r = run_cli("reach", "exp1", "--target", "0.4", "0.2", "0.9", "--target", "-0.3", "-0.3", "1.0", "--out", out)
+    assert r.returncode == 0, r.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert [e["target"] for e in report["episodes"]] == [[0.4, 0.2, 0.9], [-0.3, -0.3, 1.0]]
+    assert report["summary"]["success_5mm"] == 1.0, report["summary"]
+
+
 def test_a_learned_inverse_model_drives_the_same_loop(run_cli, tmp_path):
     im = _reach(run_cli, tmp_path, "--controller", "im", "--model-dir", TINY_MODEL, "--max-steps", "50")
     assert im["controller"] == "im" and 0.0 <= im["success_1cm"] <= 1.0
@@ -40,6 +49,8 @@ def test_a_learned_inverse_model_drives_the_same_loop(run_cli, tmp_path):
     (["exp1", "--targets", "0"], "--targets must be a positive number, got 0"),
     (["exp1", "--step", "-0.1"], "--step must be a positive number of metres"),
     (["exp2"], "reach exp2 is not built yet"),
+    (["exp1", "--target", "3", "0", "1"], "--target 3 0 1: out of the arm's reach: target (3.0000, 0.0000, 1.0000) m is unreachable"),
+    (["exp1", "--target", "0.4", "0.2"], "3 values required"),
 ])
 def test_bad_reach_options_are_refused(run_cli, tmp_path, args, message):
     r = run_cli("reach", *args, "--out", tmp_path / "out")

@@ -6,8 +6,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context as _, bail};
 use causal_arm_control::{
-    Controller, Episode, ImController, InverseModel, JacobianController, RandomController,
-    run_episode, sample_targets, summarize,
+    Controller, Episode, ImController, InverseModel, JacobianController, RandomController, Vector3,
+    check_reachable, run_episode, sample_targets, summarize,
 };
 use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::srv::PredictAction_Request;
@@ -37,8 +37,17 @@ pub struct ReachArgs {
     #[arg(value_parser = choice::<Experiment>())]
     experiment: Experiment,
     /// Target effector positions to reach, sampled where exp 1 babbles.
-    #[arg(long, default_value_t = 100, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 100,
+        allow_negative_numbers = true,
+        conflicts_with = "target"
+    )]
     targets: i64,
+    /// A target effector position of your own, world frame, m (repeat for several; in
+    /// place of the sampled ones). Refused if the arm cannot reach it.
+    #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"], allow_negative_numbers = true)]
+    target: Vec<f64>,
     /// Seed of the targets (and of the random controller).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -143,7 +152,19 @@ pub fn run(args: &ReachArgs) -> anyhow::Result<()> {
     }
     let model = ArmModel::embedded();
     let mut controller = controller(args, &model)?;
-    let goals = sample_targets(&model, targets, 0.35, args.seed)?;
+    let goals = match args.target.as_slice() {
+        [] => sample_targets(&model, targets, 0.35, args.seed)?,
+        given => given
+            .chunks(3)
+            .map(|p| {
+                let goal = Vector3::new(p[0], p[1], p[2]);
+                check_reachable(&model, &goal)
+                    .with_context(|| format!("--target {} {} {}", p[0], p[1], p[2]))?;
+                Ok(goal)
+            })
+            .collect::<anyhow::Result<_>>()?,
+    };
+    let targets = goals.len();
     let mut sim = Simulator::new(SimConfig::default())?;
     let mut counter = Counter::new(
         targets as u64,

@@ -5,16 +5,19 @@
 //! - [`JacobianController`]: the analytic baseline, a damped least-squares step of the
 //!   kinematics crate's Jacobian toward the target.
 //! - [`ImController`]: asks a learned inverse model IM [s(t), s*] → a for the action that
-//!   takes the state to an intermediate s*, a clipped step toward the target. The exp 1
+//!   takes the state to an intermediate s*, a full step toward the target (the action
+//!   scaled down to the remaining distance near it; one babbled step when it stalls). The exp 1
 //!   state is (θ, ef) and θ(t+1) = θ(t) + a, so s* must be consistent: its θ* is θ plus
 //!   the joint step that moves ef by the clipped Δef (a Jacobian step), its ef* is ef + Δef.
 //!   Giving the IM θ* = θ with a moved ef would ask it for a contradiction.
 //! - [`RandomController`]: motor babbling, exp 1's random joint targets, as the floor.
 
-use causal_arm_kinematics::ArmModel;
+use causal_arm_kinematics::{ArmModel, IkOptions, IkTarget};
 use causal_arm_protocol::{ARM_DOF, Command, SimState};
 use causal_arm_sim::Simulator;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Matrix3;
+/// Targets and displacements are nalgebra vectors (re-exported so callers need not pin it).
+pub use nalgebra::Vector3;
 use rand::{SeedableRng, rngs::StdRng};
 use rand_distr::{Distribution, Normal};
 
@@ -55,6 +58,29 @@ pub fn sample_targets(
             Ok(pose.translation.vector)
         })
         .collect()
+}
+
+/// How close IK must bring the effector to a target for it to count as reachable, m.
+pub const REACHABLE_WITHIN_M: f64 = 1e-3;
+
+/// Refuses a target the arm cannot reach (no joint values within the limits put the
+/// effector within [`REACHABLE_WITHIN_M`] of it), saying how close the arm gets, so no
+/// controller is scored on an impossible goal.
+pub fn check_reachable(model: &ArmModel, target: &Vector3<f64>) -> Result<(), ControlError> {
+    if !target.iter().all(|v| v.is_finite()) {
+        return Err(ControlError::Options(format!(
+            "target ({}, {}, {}) is not a finite position",
+            target.x, target.y, target.z
+        )));
+    }
+    let options = IkOptions {
+        tolerance_m: REACHABLE_WITHIN_M,
+        ..IkOptions::default()
+    };
+    model
+        .inverse(&IkTarget::position(target.x, target.y, target.z), &options)
+        .map(|_| ())
+        .map_err(|e| ControlError::Options(format!("out of the arm's reach: {e}")))
 }
 
 /// The joint step that moves the effector by `dx` (damped least squares on the position
@@ -522,6 +548,19 @@ mod tests {
         // Every STALL_STEPS-th step without progress babbles; the others are the IM's.
         let babbled: Vec<usize> = (0..moves.len()).filter(|&i| moves[i]).collect();
         assert_eq!(babbled, [STALL_STEPS, 2 * STALL_STEPS], "{moves:?}");
+    }
+
+    #[test]
+    fn unreachable_and_non_finite_targets_are_refused_naming_the_distance() {
+        let model = ArmModel::embedded();
+        for target in sample_targets(&model, 5, 0.35, 4).unwrap() {
+            check_reachable(&model, &target).unwrap();
+        }
+        let far = check_reachable(&model, &Vector3::new(3.0, 0.0, 1.0)).unwrap_err();
+        assert!(far.to_string().contains("out of the arm's reach"), "{far}");
+        assert!(far.to_string().contains("m away"), "{far}");
+        let nan = check_reachable(&model, &Vector3::new(f64::NAN, 0.0, 1.0)).unwrap_err();
+        assert!(nan.to_string().contains("not a finite position"), "{nan}");
     }
 
     #[test]

@@ -30,6 +30,7 @@ the first step within 1 cm and within 5 mm and the final distance.
 import argparse
 import json
 import math
+import os
 import pathlib
 import random
 import sys
@@ -125,7 +126,6 @@ def main() -> int:
     if args.steps_per_target < 1 or not args.step > 0:
         parser.error("--steps-per-target and --step must be positive")
 
-    import os
     participant = DomainParticipant(args.domain if args.domain is not None else int(os.environ.get("ROS_DOMAIN_ID", 0)))
     qos = ros_default_qos(depth=100)
     reader = lambda topic, kind: DataReader(participant, Topic(participant, topic, kind), qos=qos)  # noqa: E731
@@ -167,7 +167,7 @@ def main() -> int:
         q = [js.position[js.name.index(n)] for n in JOINTS]
         p = pose.pose.position
         ef = [p.x, p.y, p.z]
-        index = min(step // args.steps_per_target, len(targets) - 1)
+        index = step // args.steps_per_target
         entry, k = report[index], step % args.steps_per_target
         error = math.dist(ef, targets[index])
         if k > 0 or index == 0:

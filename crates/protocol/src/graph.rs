@@ -244,40 +244,36 @@ pub fn graph() -> Result<&'static GraphSpec, GraphError> {
 /// The embedded graph's default of run parameter `name`, as text (for `--help` defaults).
 /// The embedded file is checked by this crate's tests, so a missing name is a build bug.
 pub fn run_default_text(name: &str) -> &'static str {
-    static TEXTS: LazyLock<Vec<(String, String)>> = LazyLock::new(|| match graph() {
-        Ok(g) => g
-            .run_params
-            .iter()
-            .map(|p| (p.name.clone(), p.default.to_string()))
-            .collect(),
-        Err(_) => Vec::new(),
-    });
-    TEXTS
-        .iter()
-        .find(|(n, _)| n == name)
-        .map(|(_, v)| v.as_str())
-        .unwrap_or("")
+    default_text(RUN, name)
 }
 
 /// The embedded graph's default of parameter `param` of serving node `server`, as text
 /// (the default of the command-line option for the same setting). A missing name is a
 /// build bug, caught by the tests of the commands that ask.
 pub fn server_default_text(server: &str, param: &str) -> &'static str {
+    default_text(server, param)
+}
+
+/// Owner of the run parameters in the table of [`default_text`] (no node has this name).
+const RUN: &str = "";
+
+/// Every default of the graph, rendered once: (owner, parameter, text), the owner being
+/// [`RUN`] for a run parameter or the server's name; "" for a name the graph lacks.
+fn default_text(owner: &str, param: &str) -> &'static str {
     static TEXTS: LazyLock<Vec<(String, String, String)>> = LazyLock::new(|| match graph() {
-        Ok(g) => g
-            .servers
-            .iter()
-            .flat_map(|s| {
-                s.params
-                    .iter()
-                    .map(|p| (s.name.clone(), p.name.clone(), p.default.to_string()))
-            })
-            .collect(),
+        Ok(g) => {
+            let run = g.run_params.iter().map(|p| (RUN, p));
+            let servers =
+                (g.servers.iter()).flat_map(|s| s.params.iter().map(|p| (s.name.as_str(), p)));
+            run.chain(servers)
+                .map(|(o, p)| (o.to_owned(), p.name.clone(), p.default.to_string()))
+                .collect()
+        }
         Err(_) => Vec::new(),
     });
     TEXTS
         .iter()
-        .find(|(s, p, _)| s == server && p == param)
+        .find(|(o, p, _)| o == owner && p == param)
         .map(|(_, _, v)| v.as_str())
         .unwrap_or("")
 }

@@ -151,6 +151,7 @@ class GetModelInfoReply(IdlStruct, typename="causal_arm_msgs::srv::dds_::GetMode
     models: t.sequence[str] = field(default_factory=list)
     state_names: t.sequence[str] = field(default_factory=list)
     action_names: t.sequence[str] = field(default_factory=list)
+    next_state_names: t.sequence[str] = field(default_factory=list)
     metrics_json: str = ""
 
 

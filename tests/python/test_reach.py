@@ -1,23 +1,55 @@
-"""`causal-arm reach`: controllers drive the simulated arm to reachable targets (issue 17,
-in process). The Jacobian baseline must reach; babbling must not; a learned IM runs through
-the same loop and is reported beside them."""
+"""`causal-arm reach`: controllers drive the simulated arm to reachable targets (issue 17).
+Over DDS (simulator, recorder and reacher nodes, a trainer node serving the IM) by default,
+or in process. The Jacobian baseline must reach; babbling must not; a learned IM runs
+through the same loop and is reported beside them; the DDS run and the in-process one
+agree episode for episode, and the recorded bag holds every step."""
 
 import json
 import pathlib
 
+import numpy as np
 import pytest
+from rosbags.highlevel import AnyReader
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 TINY_MODEL = REPO / "tests" / "corpus" / "trainer_model"
 
 
-def _reach(run_cli, tmp_path, *args):
-    out = tmp_path / "reach"
-    r = run_cli("reach", "exp1", "--targets", "20", "--seed", "3", *args, "--out", out, timeout=300)
+def _run(run_cli, out, *args):
+    r = run_cli("reach", "exp1", "--targets", "20", "--seed", "3", *args, "--out", out, "--overwrite", timeout=300)
     assert r.returncode == 0, r.stderr
     report = json.loads((out / "report.json").read_text())
     assert len(report["episodes"]) == 20
-    return report["summary"]
+    return report
+
+
+def _reach(run_cli, tmp_path, *args):
+    return _run(run_cli, tmp_path / "reach", *args)["summary"]
+
+
+@pytest.mark.parametrize("controller", [["--controller", "jacobian"],
+                                        ["--controller", "im", "--model-dir", TINY_MODEL, "--max-steps", "30"]])
+def test_over_dds_the_nodes_reach_exactly_as_in_process(run_cli, tmp_path, controller):
+    """The reacher node (asking the trainer node over DDS for the IM) and the library loop
+    give the same episodes, and the recorder's bag holds every step of the run: per target
+    max_steps + 1 states, the arm held still once within 5 mm."""
+    dds = _run(run_cli, tmp_path / "dds", *controller)
+    local = _run(run_cli, tmp_path / "local", *controller, "--in-process")
+    assert dds["over"] == "dds" and local["over"] == "process"
+    assert dds["episodes"] == local["episodes"]
+    assert dds["summary"] == local["summary"]
+    per_episode = dds["max_steps"] + 1
+    with AnyReader([tmp_path / "dds" / "bag"]) as bag:
+        actions = [bag.deserialize(raw, c.msgtype) for c, _, raw in
+                   bag.messages(connections=[c for c in bag.connections if c.topic == "/babbler/action"])]
+    assert len(actions) == 20 * per_episode
+    for i, episode in enumerate(dds["episodes"]):
+        steps = actions[i * per_episode:(i + 1) * per_episode]
+        assert [a.step for a in steps] == list(range(per_episode))
+        held = steps[episode["steps"]:]
+        assert held and all(np.allclose(a.joint_deltas, 0.0) for a in held), episode
+        if episode["within_5mm_at"] is None:
+            assert len(held) == 1  # the last state's action, whose outcome is the next reset
 
 
 def test_the_jacobian_controller_reaches_and_babbling_does_not(run_cli, tmp_path):
@@ -51,7 +83,15 @@ def test_a_learned_inverse_model_drives_the_same_loop(run_cli, tmp_path):
     (["exp2"], "reach exp2 is not built yet"),
     (["exp1", "--target", "3", "0", "1"], "--target 3 0 1: out of the arm's reach: target (3.0000, 0.0000, 1.0000) m is unreachable"),
     (["exp1", "--target", "0.4", "0.2"], "3 values required"),
+    (["exp1", "--max-steps", "0"], "--max-steps must be a positive number, got 0"),
 ])
 def test_bad_reach_options_are_refused(run_cli, tmp_path, args, message):
     r = run_cli("reach", *args, "--out", tmp_path / "out")
     assert r.returncode != 0 and message in r.stderr, r.stderr
+
+
+def test_a_bag_of_an_earlier_run_is_kept_unless_overwrite_is_given(run_cli, tmp_path):
+    out = tmp_path / "reach"
+    assert run_cli("reach", "exp1", "--targets", "1", "--max-steps", "5", "--out", out).returncode == 0
+    r = run_cli("reach", "exp1", "--targets", "1", "--max-steps", "5", "--out", out)
+    assert r.returncode != 0 and "already holds a bag" in r.stderr and "--overwrite" in r.stderr, r.stderr

@@ -91,7 +91,10 @@ def test_services_agree_with_numpy_on_the_model_files(clients, model_dir):
     assert info.success and info.models == ["fm", "im-mono"]
     metrics = json.loads(info.metrics_json)
     assert set(metrics) == {"fm", "im-mono"}
+    # What predict_action's next_state holds: the served IM's next-state features.
+    assert info.next_state_names == ["ef_x", "ef_y", "ef_z"], info.next_state_names
     fm_info = clients["info"].call(idl.GetModelInfoRequest(model="fm"))
+    assert fm_info.next_state_names == []
     figures = {f["key"]: f for f in json.loads(fm_info.metrics_json)["figures"]}
     assert figures["fm/ef"]["paper"] == pytest.approx(6.9e-3) and "baseline" in figures["fm/ef"]
 

@@ -107,7 +107,9 @@ pub fn node_commands(options: &GenerateOptions) -> anyhow::Result<Vec<(String, V
 
 /// Starts each node process of `commands`, in order. Each gets SIGTERM (and finalizes, as
 /// on Ctrl-C) if the launcher dies, even by SIGKILL, so no node outlives its launcher.
-fn spawn_nodes(commands: Vec<(String, Vec<String>)>) -> anyhow::Result<Vec<(String, Child)>> {
+pub(crate) fn spawn_nodes(
+    commands: Vec<(String, Vec<String>)>,
+) -> anyhow::Result<Vec<(String, Child)>> {
     let mut children = Vec::new();
     for (name, args) in commands {
         let mut command = Command::new(node_binary(&name)?);
@@ -131,7 +133,7 @@ fn spawn_nodes(commands: Vec<(String, Vec<String>)>) -> anyhow::Result<Vec<(Stri
 
 /// Interrupts every node still running and waits up to 10 s for it to finalize, then
 /// kills it.
-fn stop_nodes(children: &mut [(String, Child)]) -> anyhow::Result<()> {
+pub(crate) fn stop_nodes(children: &mut [(String, Child)]) -> anyhow::Result<()> {
     for (_, child) in children {
         if child.try_wait()?.is_none() {
             interrupt(child);
@@ -191,23 +193,8 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
             options.out.display()
         );
     }
-    let stop = causal_arm_node::runtime::stop_flag();
-
-    let mut children = spawn_nodes(commands)?;
-    let ends_run = graph()?
-        .nodes
-        .iter()
-        .position(|n| n.ends_run)
-        .ok_or_else(|| anyhow::anyhow!("the graph has no node that ends the run"))?;
-    let (recorder_name, mut recorder) = children.remove(ends_run);
     let start = Instant::now();
-    let outcome = follow_run(&options, ros_args, &stop, &mut recorder, &mut children);
-    // Whatever ended the run, no node outlives it.
-    stop_nodes(&mut children)?;
-    let recorder_status = outcome?;
-    if !recorder_status.success() {
-        bail!("{recorder_name} failed ({recorder_status})");
-    }
+    run_graph(&options, commands, ros_args)?;
     let secs = start.elapsed().as_secs_f64();
     let total = options.plan.total_steps();
     let recorded = recorded_steps(&options.out)?;
@@ -225,9 +212,38 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Starts the nodes of `commands` (one of them the graph's run-ending node, the
+/// recorder), shows the run's progress until the recorder exits, and stops every node.
+/// Fails when the recorder or another node fails; the bag is finalized either way.
+pub(crate) fn run_graph(
+    options: &GenerateOptions,
+    commands: Vec<(String, Vec<String>)>,
+    ros_args: &RosArgs,
+) -> anyhow::Result<()> {
+    let ends_run = graph()?
+        .nodes
+        .iter()
+        .find(|n| n.ends_run)
+        .ok_or_else(|| anyhow::anyhow!("the graph has no node that ends the run"))?;
+    let recorder_at = (commands.iter())
+        .position(|(name, _)| *name == ends_run.name)
+        .with_context(|| format!("{} is not among the nodes to start", ends_run.name))?;
+    let stop = causal_arm_node::runtime::stop_flag();
+    let mut children = spawn_nodes(commands)?;
+    let (recorder_name, mut recorder) = children.remove(recorder_at);
+    let outcome = follow_run(options, ros_args, &stop, &mut recorder, &mut children);
+    // Whatever ended the run, no node outlives it.
+    stop_nodes(&mut children)?;
+    let recorder_status = outcome?;
+    if !recorder_status.success() {
+        bail!("{recorder_name} failed ({recorder_status})");
+    }
+    Ok(())
+}
+
 /// Steps in the finished bag: its `/babbler/action` messages, one per step (read from
 /// the bag's summary, not assumed from the plan, so an interrupted run says so).
-fn recorded_steps(bag: &std::path::Path) -> anyhow::Result<u64> {
+pub(crate) fn recorded_steps(bag: &std::path::Path) -> anyhow::Result<u64> {
     let reader = causal_arm_bag::BagReader::open(bag)
         .with_context(|| format!("reading back the recorded bag {}", bag.display()))?;
     Ok(reader

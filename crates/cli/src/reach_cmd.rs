@@ -1,22 +1,29 @@
 //! `causal-arm reach`: drive the simulated arm to target effector positions with a
 //! controller (the Jacobian baseline, a learned inverse model, or babbling) and report
-//! how often and how fast it gets there. In process, exp 1 only for now (issue 17).
+//! how often and how fast it gets there. Over DDS (the simulator, recorder and
+//! `causal_arm_reacher` nodes, and a trainer node serving the IM) or, with
+//! `--in-process`, with the simulator library; exp 1 only for now (issue 17).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, bail};
 use causal_arm_control::{
-    Controller, Episode, ImController, InverseModel, JacobianController, RandomController, Vector3,
-    check_reachable, run_episode, sample_targets, summarize,
+    Controller, Episode, ImController, InverseModel, JacobianController, RandomController, Summary,
+    Vector3, check_reachable, run_episode, sample_targets, summarize,
 };
+use causal_arm_datagen::GenerateOptions;
 use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::srv::PredictAction_Request;
+use causal_arm_node::RosArgs;
 use causal_arm_protocol::Experiment;
+use causal_arm_protocol::RunPlan;
+use causal_arm_protocol::graph::graph;
 use causal_arm_sim::{SimConfig, Simulator};
 use causal_arm_trainer::serve::ModelSet;
 use clap::{Args, ValueEnum};
 
 use crate::choice::choice;
+use crate::launch_cmd;
 use crate::progress::Counter;
 
 /// Which policy drives the arm.
@@ -28,6 +35,17 @@ enum ControllerKind {
     Im,
     /// Exp 1's random joint targets (the floor).
     Random,
+}
+
+impl ControllerKind {
+    /// The name the reacher node's `controller` parameter takes.
+    fn name(self) -> &'static str {
+        match self {
+            Self::Jacobian => "jacobian",
+            Self::Im => "im",
+            Self::Random => "random",
+        }
+    }
 }
 
 /// `causal-arm reach` options.
@@ -69,9 +87,17 @@ pub struct ReachArgs {
     /// IM 84 % at 5 cm, 91 % at 10 cm; a 30-epoch IM 70 % and 27 %; both 0 % at 2 cm).
     #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     step: f64,
-    /// Directory for report.json.
+    /// Run in this process with the simulator library, instead of over DDS with the
+    /// simulator, recorder and reacher nodes (and a trainer node for the IM).
+    #[arg(long)]
+    in_process: bool,
+    /// Directory for report.json (and, over DDS, the run's bag in OUT/bag and the targets
+    /// in OUT/targets.json).
     #[arg(long)]
     out: PathBuf,
+    /// Replace a bag already in OUT/bag.
+    #[arg(long)]
+    overwrite: bool,
 }
 
 /// The exp 1 inverse model of a model directory, as the trainer node serves it. The IM
@@ -136,7 +162,7 @@ impl InverseModel for TrainedIm {
 }
 
 /// Runs `causal-arm reach`.
-pub fn run(args: &ReachArgs) -> anyhow::Result<()> {
+pub fn run(args: &ReachArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     if args.experiment != Experiment::Exp1 {
         bail!("reach exp2 is not built yet: only exp1 targets (effector positions) are");
     }
@@ -151,7 +177,6 @@ pub fn run(args: &ReachArgs) -> anyhow::Result<()> {
         );
     }
     let model = ArmModel::embedded();
-    let mut controller = controller(args, &model)?;
     let goals = match args.target.as_slice() {
         [] => sample_targets(&model, targets, 0.35, args.seed)?,
         given => given
@@ -164,27 +189,15 @@ pub fn run(args: &ReachArgs) -> anyhow::Result<()> {
             })
             .collect::<anyhow::Result<_>>()?,
     };
-    let targets = goals.len();
-    let mut sim = Simulator::new(SimConfig::default())?;
-    let mut counter = Counter::new(
-        targets as u64,
-        &format!("reach with {}", controller.name()),
-        "targets",
-    );
-    let mut episodes: Vec<Episode> = Vec::with_capacity(targets);
-    for (i, goal) in goals.iter().enumerate() {
-        episodes.push(run_episode(&mut sim, controller.as_mut(), goal, max_steps)?);
-        counter.set(i as u64 + 1);
-    }
-    counter.finish();
-    let summary = summarize(controller.name(), &episodes);
+    // Refuse a model directory without a usable IM before anything starts.
+    let mut controller = controller(args, &model)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    let report = serde_json::json!({"summary": summary, "episodes": episodes, "seed": args.seed,
-        "max_steps": max_steps, "step_m": args.step});
     let file = args.out.join("report.json");
-    std::fs::write(&file, serde_json::to_string_pretty(&report)?)
-        .with_context(|| format!("writing {}", file.display()))?;
+    let summary = match args.in_process {
+        true => in_process(args, controller.as_mut(), &goals, max_steps, &file)?,
+        false => over_dds(args, ros_args, &goals, max_steps, &file)?,
+    };
     println!(
         "{}: {} targets, within 1 cm {:.0} %, within 5 mm {:.0} %, median steps to 1 cm {}, final error p50 {:.4} m ({})",
         summary.controller,
@@ -198,6 +211,138 @@ pub fn run(args: &ReachArgs) -> anyhow::Result<()> {
         file.display()
     );
     Ok(())
+}
+
+/// Reaches every goal in this process, with the simulator library, and writes `file`.
+fn in_process(
+    args: &ReachArgs,
+    controller: &mut dyn Controller,
+    goals: &[Vector3<f64>],
+    max_steps: usize,
+    file: &Path,
+) -> anyhow::Result<Summary> {
+    let mut sim = Simulator::new(SimConfig::default())?;
+    let mut counter = Counter::new(
+        goals.len() as u64,
+        &format!("reach with {}", controller.name()),
+        "targets",
+    );
+    let mut episodes: Vec<Episode> = Vec::with_capacity(goals.len());
+    for (i, goal) in goals.iter().enumerate() {
+        episodes.push(run_episode(&mut sim, controller, goal, max_steps)?);
+        counter.set(i as u64 + 1);
+    }
+    counter.finish();
+    let summary = summarize(controller.name(), &episodes);
+    let report = serde_json::json!({"summary": summary, "episodes": episodes, "seed": args.seed,
+        "max_steps": max_steps, "step_m": args.step, "over": "process"});
+    std::fs::write(file, serde_json::to_string_pretty(&report)?)
+        .with_context(|| format!("writing {}", file.display()))?;
+    Ok(summary)
+}
+
+/// Reaches every goal over DDS: the simulator, recorder and reacher nodes (and, for the
+/// IM, a trainer node serving --model-dir) as separate processes, one episode per goal
+/// of `max_steps + 1` states (the reacher holds the arm once within 5 mm). The recorder
+/// writes the run into OUT/bag; the reacher writes `file`.
+fn over_dds(
+    args: &ReachArgs,
+    ros_args: &RosArgs,
+    goals: &[Vector3<f64>],
+    max_steps: usize,
+    file: &Path,
+) -> anyhow::Result<Summary> {
+    let plan = RunPlan {
+        episodes: goals.len() as u64,
+        steps_per_episode: max_steps as u64 + 1,
+    };
+    let mut options = GenerateOptions::new(Experiment::Exp1, plan, args.seed, args.out.join("bag"));
+    options.overwrite = args.overwrite;
+    causal_arm_datagen::validate(&options)?;
+    if !options.overwrite
+        && let Some(found) = causal_arm_bag::existing_bag(&options.out)
+    {
+        bail!(
+            "{} already holds a bag ({found}); pass --overwrite to replace it",
+            options.out.display()
+        );
+    }
+    let targets_file = args.out.join("targets.json");
+    let points: Vec<[f64; 3]> = goals.iter().map(|g| [g.x, g.y, g.z]).collect();
+    std::fs::write(&targets_file, serde_json::to_string(&points)?)
+        .with_context(|| format!("writing {}", targets_file.display()))?;
+    if file.exists() {
+        std::fs::remove_file(file).with_context(|| format!("replacing {}", file.display()))?;
+    }
+    let reacher = [
+        format!("controller:={}", args.controller.name()),
+        format!("step:={:?}", args.step),
+        format!("target_seed:={}", args.seed),
+        format!("targets_file:={}", targets_file.display()),
+        format!("report:={}", file.display()),
+    ];
+    let commands = with_reacher(launch_cmd::node_commands(&options)?, &reacher, ros_args)?;
+    let mut trainer = match args.controller {
+        ControllerKind::Im => launch_cmd::spawn_nodes(vec![trainer_command(args, ros_args)?])?,
+        _ => Vec::new(),
+    };
+    let outcome = launch_cmd::run_graph(&options, commands, ros_args);
+    launch_cmd::stop_nodes(&mut trainer)?;
+    outcome?;
+    let report: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(file)
+            .with_context(|| format!("the reacher wrote no report {}", file.display()))?,
+    )?;
+    Ok(serde_json::from_value(report["summary"].clone())?)
+}
+
+/// The graph's node commands with the reacher in the babbler's place (its own
+/// parameters `own` added), each node joining with the launcher's enclave.
+fn with_reacher(
+    commands: Vec<(String, Vec<String>)>,
+    own: &[String],
+    ros_args: &RosArgs,
+) -> anyhow::Result<Vec<(String, Vec<String>)>> {
+    let reacher = (graph()?.stand_ins.iter())
+        .find(|n| n.name == "causal_arm_reacher")
+        .context("the graph file declares no causal_arm_reacher stand-in")?;
+    let replaced = reacher.replaces.clone().unwrap_or_default();
+    Ok(commands
+        .into_iter()
+        .map(|(name, mut node_args)| {
+            if name == replaced {
+                node_args.extend(own.iter().flat_map(|p| ["-p".to_owned(), p.clone()]));
+                return (reacher.name.clone(), node_args);
+            }
+            (name, node_args)
+        })
+        .map(|(name, mut node_args)| {
+            if let Some(enclave) = &ros_args.enclave {
+                node_args.extend(["--enclave".to_owned(), enclave.clone()]);
+            }
+            (name, node_args)
+        })
+        .collect())
+}
+
+/// The trainer node serving --model-dir's IM (for both services: reaching needs no FM).
+fn trainer_command(args: &ReachArgs, ros_args: &RosArgs) -> anyhow::Result<(String, Vec<String>)> {
+    let dir = args
+        .model_dir
+        .as_ref()
+        .context("--controller im needs --model-dir")?;
+    let mut node_args: Vec<String> = vec!["--ros-args".into()];
+    for p in [
+        format!("model_dir:={}", dir.display()),
+        format!("forward_model:={}", args.inverse_model),
+        format!("inverse_model:={}", args.inverse_model),
+    ] {
+        node_args.extend(["-p".to_owned(), p]);
+    }
+    if let Some(enclave) = &ros_args.enclave {
+        node_args.extend(["--enclave".to_owned(), enclave.clone()]);
+    }
+    Ok(("causal_arm_trainer".to_owned(), node_args))
 }
 
 fn controller(args: &ReachArgs, model: &ArmModel) -> anyhow::Result<Box<dyn Controller>> {

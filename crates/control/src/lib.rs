@@ -332,6 +332,53 @@ pub struct Episode {
     pub steps: usize,
 }
 
+impl Episode {
+    /// An episode toward `target` that starts in `state`, no step run yet.
+    pub fn start(target: &Vector3<f64>, state: &SimState) -> Self {
+        let error = distance(state, target);
+        Self {
+            target: [target.x, target.y, target.z],
+            start_error: error,
+            final_error: error,
+            within_1cm_at: None,
+            within_5mm_at: None,
+            steps: 0,
+        }
+    }
+
+    /// One more step has run and left the arm in `state`.
+    pub fn record(&mut self, state: &SimState) {
+        let error = distance(state, &Vector3::from(self.target));
+        self.steps += 1;
+        self.final_error = error;
+        if error <= 0.01 {
+            self.within_1cm_at.get_or_insert(self.steps);
+        }
+        if error <= 0.005 {
+            self.within_5mm_at.get_or_insert(self.steps);
+        }
+    }
+
+    /// Within 5 mm: the episode is over (the arm holds still from here).
+    pub fn reached(&self) -> bool {
+        self.within_5mm_at.is_some()
+    }
+}
+
+/// The effector's distance to `target` in `state`, m.
+fn distance(state: &SimState, target: &Vector3<f64>) -> f64 {
+    (state.ef_pose.translation.vector - target).norm()
+}
+
+/// The command that keeps the arm where it is (what a reached target gets while the
+/// rest of a fixed-length episode runs out).
+pub fn hold(state: &SimState) -> Command {
+    Command {
+        joint_targets: state.joint_positions,
+        magnet: 0,
+    }
+}
+
 /// Runs one episode from the simulator's home pose: at most `max_steps` commands, ending
 /// early once within 5 mm.
 pub fn run_episode(
@@ -342,35 +389,19 @@ pub fn run_episode(
 ) -> Result<Episode, ControlError> {
     sim.reset_episode();
     let mut state = sim.state();
-    let distance = |s: &SimState| (s.ef_pose.translation.vector - target).norm();
-    let start_error = distance(&state);
-    let (mut within_1cm_at, mut within_5mm_at, mut steps) = (None, None, 0);
-    while steps < max_steps && within_5mm_at.is_none() {
+    let mut episode = Episode::start(target, &state);
+    while episode.steps < max_steps && !episode.reached() {
         let command = controller.command(&state, target)?;
         state = sim
             .step(&command)
             .map_err(|e| ControlError::Sim(e.to_string()))?;
-        steps += 1;
-        let error = distance(&state);
-        if error <= 0.01 {
-            within_1cm_at.get_or_insert(steps);
-        }
-        if error <= 0.005 {
-            within_5mm_at = Some(steps);
-        }
+        episode.record(&state);
     }
-    Ok(Episode {
-        target: [target.x, target.y, target.z],
-        start_error,
-        final_error: distance(&state),
-        within_1cm_at,
-        within_5mm_at,
-        steps,
-    })
+    Ok(episode)
 }
 
 /// Success rates and error quantiles of a controller's episodes.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Summary {
     /// Controller name.
     pub controller: String,

@@ -30,6 +30,12 @@ pub struct GraphSpec {
     /// `explain` take the defaults of the same settings from these declarations.
     #[serde(default)]
     pub servers: Vec<NodeDecl>,
+    /// Nodes that take another node's place in a run (`replaces`): the reacher answers
+    /// the simulator's states in the babbler's stead when `causal-arm reach` runs the
+    /// graph. `launch` does not start them; the graph's readers trust what they publish
+    /// as they trust the node they replace.
+    #[serde(default)]
+    pub stand_ins: Vec<NodeDecl>,
 }
 
 /// One node of the graph.
@@ -41,6 +47,9 @@ pub struct NodeDecl {
     /// The run ends when this node exits (the recorder, once the bag is written).
     #[serde(default)]
     pub ends_run: bool,
+    /// A stand-in's node whose place it takes (same topics published).
+    #[serde(default)]
+    pub replaces: Option<String>,
     /// Topics it subscribes to.
     #[serde(default)]
     pub subscribes: Vec<String>,
@@ -140,7 +149,7 @@ impl GraphSpec {
     /// Every topic named, every name unique, every default in its range and choices.
     fn check(&self) -> Result<(), String> {
         let mut names = std::collections::HashSet::new();
-        for node in &self.nodes {
+        for node in self.nodes.iter().chain(&self.stand_ins) {
             if !names.insert(node.name.as_str()) {
                 return Err(format!("node {} is listed twice", node.name));
             }
@@ -155,11 +164,26 @@ impl GraphSpec {
             }
             check_params(&node.name, self.run_params.iter().chain(&node.params))?;
         }
+        for node in &self.nodes {
+            if let Some(other) = &node.replaces {
+                return Err(format!(
+                    "node {}: only a stand-in replaces a node (it names {other})",
+                    node.name
+                ));
+            }
+        }
+        for stand_in in &self.stand_ins {
+            self.check_stand_in(stand_in)?;
+        }
         for server in &self.servers {
             if !names.insert(server.name.as_str()) {
                 return Err(format!("node {} is listed twice", server.name));
             }
-            if server.ends_run || !server.subscribes.is_empty() || !server.publishes.is_empty() {
+            if server.ends_run
+                || server.replaces.is_some()
+                || !server.subscribes.is_empty()
+                || !server.publishes.is_empty()
+            {
                 return Err(format!(
                     "server {}: a server takes only parameters (it is not part of a run)",
                     server.name
@@ -173,14 +197,48 @@ impl GraphSpec {
         Ok(())
     }
 
+    /// A stand-in names a node of the run and publishes what that node publishes, so
+    /// every reader of those topics is served as before.
+    fn check_stand_in(&self, stand_in: &NodeDecl) -> Result<(), String> {
+        let name = &stand_in.name;
+        let replaced = (stand_in.replaces.as_ref())
+            .ok_or_else(|| format!("stand-in {name}: `replaces` names no node"))?;
+        let node = self
+            .nodes
+            .iter()
+            .find(|n| &n.name == replaced)
+            .ok_or_else(|| {
+                format!("stand-in {name}: replaces {replaced}, not a node of the run")
+            })?;
+        let sorted = |t: &[String]| {
+            let mut t = t.to_vec();
+            t.sort();
+            t
+        };
+        if stand_in.ends_run || sorted(&stand_in.publishes) != sorted(&node.publishes) {
+            return Err(format!(
+                "stand-in {name}: must publish what {replaced} publishes ({:?}, got {:?}) and not end the run",
+                node.publishes, stand_in.publishes
+            ));
+        }
+        Ok(())
+    }
+
     /// The run parameter `name`, or `None` if the graph has none of that name.
     pub fn run_param(&self, name: &str) -> Option<&ParamDecl> {
         self.run_params.iter().find(|p| p.name == name)
     }
 
-    /// The node `name`.
+    /// The node `name`, of the run or a stand-in.
     pub fn node(&self, name: &str) -> Option<&NodeDecl> {
-        self.nodes.iter().find(|n| n.name == name)
+        (self.nodes.iter().chain(&self.stand_ins)).find(|n| n.name == name)
+    }
+
+    /// The nodes publishing `topic`: the run's, and the stand-ins that may take their
+    /// place (whose samples the readers take as they take the replaced node's).
+    pub fn publishers_of<'a>(&'a self, topic: &'a str) -> impl Iterator<Item = &'a NodeDecl> {
+        (self.nodes.iter().chain(&self.stand_ins))
+            .filter(move |n| n.publishes.iter().any(|t| t == topic))
     }
 
     /// The serving node `name`.
@@ -323,6 +381,16 @@ mod tests {
             ["causal_arm_recorder", "causal_arm_sim"]
         );
         assert_eq!(readers(crate::topics::TF), ["causal_arm_recorder"]);
+        // The reacher stands in for the babbler: trusted on its topic, never a reader
+        // the run waits for.
+        let writers: Vec<&str> = (g.publishers_of(crate::topics::ACTION))
+            .map(|n| n.name.as_str())
+            .collect();
+        assert_eq!(writers, ["causal_arm_babbler", "causal_arm_reacher"]);
+        assert_eq!(
+            g.node("causal_arm_reacher").unwrap().replaces.as_deref(),
+            Some("causal_arm_babbler")
+        );
         // Every topic published is subscribed by someone, and the other way round.
         for node in &g.nodes {
             for t in &node.subscribes {
@@ -358,6 +426,18 @@ mod tests {
             (
                 "run_params = []\nnodes = []\nextra = 1",
                 "unknown field `extra`",
+            ),
+            (
+                "run_params = []\n[[nodes]]\nname = \"a\"\nends_run = true\n[[stand_ins]]\nname = \"b\"\nreplaces = \"c\"",
+                "stand-in b: replaces c, not a node of the run",
+            ),
+            (
+                "run_params = []\n[[nodes]]\nname = \"a\"\nends_run = true\npublishes = [\"/clock\"]\n[[stand_ins]]\nname = \"b\"\nreplaces = \"a\"",
+                "stand-in b: must publish what a publishes ([\"/clock\"], got [])",
+            ),
+            (
+                "run_params = []\n[[nodes]]\nname = \"a\"\nends_run = true\n[[stand_ins]]\nname = \"b\"",
+                "stand-in b: `replaces` names no node",
             ),
         ];
         for (text, expected) in cases {

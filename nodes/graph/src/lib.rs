@@ -1,5 +1,6 @@
 //! The data-generation graph as ROS 2 nodes: `causal_arm_sim`, `causal_arm_babbler` and
-//! `causal_arm_recorder`, each its own process.
+//! `causal_arm_recorder`, each its own process, and `causal_arm_reacher`, which stands in
+//! for the babbler when `causal-arm reach` drives the arm to targets.
 //!
 //! Lock-step protocol (so nothing is lost and a seed reproduces `causal-arm generate`):
 //! 1. the simulator publishes the state of step k on all state topics, one stamp;
@@ -12,11 +13,13 @@
 //! All three take the same run parameters (`experiment`, `profile`, `steps`, `episodes`,
 //! `seed`, `sigma`) with `--ros-args -p name:=value`.
 
+pub mod answer;
 pub mod babbler_node;
 pub mod feed;
 pub mod flow;
 pub mod parts;
 pub mod plan;
+pub mod reacher_node;
 pub mod recorder_node;
 pub mod screen;
 pub mod sim_node;

@@ -39,10 +39,7 @@ impl Screen {
 
     /// The nodes `topic`'s samples are accepted from.
     pub fn trusted(&self, topic: &str) -> anyhow::Result<Trusted> {
-        let publishers: Vec<&str> = graph()?
-            .nodes
-            .iter()
-            .filter(|n| n.publishes.iter().any(|t| t == topic))
+        let publishers: Vec<&str> = (graph()?.publishers_of(topic))
             .map(|n| n.name.as_str())
             .collect();
         Ok(Trusted::parse(&self.setting, &self.namespace, &publishers))

@@ -203,6 +203,16 @@ impl ModelSet {
         Ok(self.inverse()?.meta.architecture.inputs - state_names(self.experiment).len())
     }
 
+    /// The next-state features the inverse model `name` takes after the state, in
+    /// order (its input names past the state's, without their `_next` suffix), so a
+    /// client of `/trainer/predict_action` knows what to send.
+    fn next_state_names(&self, model: &LoadedModel) -> Vec<String> {
+        let sw = state_names(self.experiment).len();
+        (model.meta.problem.input_names.iter().skip(sw))
+            .map(|n| n.strip_suffix("_next").unwrap_or(n).to_owned())
+            .collect()
+    }
+
     /// `/trainer/predict_action`: IM on a batch.
     pub fn predict_action(&self, req: &PredictAction_Request) -> PredictAction_Response {
         let sw = state_names(self.experiment).len();
@@ -280,13 +290,16 @@ impl ModelSet {
                 .and_then(|m| m.get(kind))
                 .cloned()
         };
-        let (metrics, action) = if req.model.is_empty() {
+        let (metrics, action, next) = if req.model.is_empty() {
             (
                 self.metrics
                     .get("models")
                     .cloned()
                     .unwrap_or(serde_json::Value::Null),
                 action_names(self.experiment),
+                self.inverse()
+                    .map(|im| self.next_state_names(im))
+                    .unwrap_or_default(),
             )
         } else if let Some(model) = self.models.get(&req.model) {
             // Model files are named after their kind or `<kind>-<part>`.
@@ -294,12 +307,17 @@ impl ModelSet {
                 .into_iter()
                 .find(|k| req.model.starts_with(k))
                 .unwrap_or(&req.model);
-            let action = if req.model == self.inverse {
-                model.meta.problem.output_names.clone()
+            let (action, next) = if req.model == self.inverse {
+                let next = self.next_state_names(model);
+                (model.meta.problem.output_names.clone(), next)
             } else {
-                action_names(self.experiment)
+                (action_names(self.experiment), Vec::new())
             };
-            (metrics_of(kind).unwrap_or(serde_json::Value::Null), action)
+            (
+                metrics_of(kind).unwrap_or(serde_json::Value::Null),
+                action,
+                next,
+            )
         } else {
             return GetModelInfo_Response {
                 success: false,
@@ -318,6 +336,7 @@ impl ModelSet {
             models,
             state_names: state_names(self.experiment),
             action_names: action,
+            next_state_names: next,
             metrics_json: metrics.to_string(),
         }
     }

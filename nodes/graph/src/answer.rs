@@ -1,0 +1,111 @@
+//! The loop of a node that answers the simulator: join each step's state topics, turn
+//! them into a [`SimState`], and publish one action per state on `/babbler/action`. The
+//! babbler and the reacher differ only in how they choose the command.
+
+use std::rc::Rc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::bail;
+use causal_arm_msgs::msg::Action;
+use causal_arm_node::{RosNode, qos};
+use causal_arm_protocol::{
+    Command, SimState, StepJoiner, action_message, state_from_messages, topics,
+};
+
+use crate::RunParams;
+use crate::feed::{drain_or_wait, refusal_summary};
+use crate::parts::{StateParts, state_feeds};
+use crate::screen::Screen;
+
+/// Where a state falls in the run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StepPlace {
+    /// Step of the run (0-based).
+    pub step: u64,
+    /// Episode of the run (0-based).
+    pub episode: u32,
+    /// Step within the episode (0: the state right after the episode's reset).
+    pub in_episode: u64,
+}
+
+/// Answers every state of `run` from step `start` on with `choose`'s command, until the
+/// run's last step or `stop`; returns how many steps were answered in all. `node` takes
+/// its `wait_for_recorder` and `timeout` parameters from its graph-file declaration.
+pub fn answer_states(
+    node: &mut RosNode,
+    run: &RunParams,
+    start: u64,
+    stop: &AtomicBool,
+    mut choose: impl FnMut(&SimState, StepPlace) -> anyhow::Result<Command>,
+) -> anyhow::Result<u64> {
+    let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+    let recorded = qos::recorded();
+    let screen = Rc::new(Screen::new(node)?);
+    let feeds = state_feeds::<StateParts>(node, &screen, &recorded)?;
+    let actions = node.publisher::<Action>(topics::ACTION, recorded)?;
+
+    // The simulator and, when the run is recorded, the recorder: an action written before
+    // the recorder's reader matched would never reach the bag.
+    let with_recorder = node.params().bool("wait_for_recorder");
+    let needed = crate::expected_readers(topics::ACTION, with_recorder)?.max(1);
+    let settle = Duration::from_millis(500);
+    if !node.wait_for_subscribers(&actions, needed, timeout, settle, stop) {
+        if stop.load(Ordering::SeqCst) {
+            return Ok(start);
+        }
+        let recorder = if with_recorder {
+            " and the recorder"
+        } else {
+            ""
+        };
+        bail!(
+            "{needed} subscriber(s) of {} (the simulator{recorder}) did not appear within {timeout:?}",
+            topics::ACTION,
+        );
+    }
+
+    let per_episode = run.options.plan.steps_per_episode;
+    let total = run.options.plan.total_steps();
+    let mut joiner = StepJoiner::<StateParts>::new();
+    let mut answered = start;
+    let mut last_activity = Instant::now();
+    while answered < total && !stop.load(Ordering::SeqCst) {
+        if drain_or_wait(&feeds, &mut joiner, Duration::from_millis(100)) {
+            last_activity = Instant::now();
+        } else if last_activity.elapsed() > timeout {
+            bail!("no state from the simulator for {timeout:?} after {answered} of {total} steps");
+        }
+        // The simulator waits for each answer before the next state, so an incomplete
+        // step older than a complete one is a stray: release it (lenient popping).
+        while let Some((_, parts)) = joiner.pop_complete(false) {
+            let place = StepPlace {
+                step: answered,
+                episode: (answered / per_episode) as u32,
+                in_episode: answered % per_episode,
+            };
+            let state = state_from_messages(
+                parts.joint_states.as_ref().expect("complete"),
+                parts.ef_pose.as_ref().expect("complete"),
+                parts.object_pose.as_ref().expect("complete"),
+                parts.object_color.as_ref().expect("complete"),
+                parts.magnet.as_ref().expect("complete"),
+                place.step,
+                place.episode,
+            )?;
+            let command = choose(&state, place)?;
+            actions
+                .publish(action_message(&state, &command, place.in_episode))
+                .map_err(|e| anyhow::anyhow!("publishing on {}: {e:?}", topics::ACTION))?;
+            answered += 1;
+        }
+    }
+
+    // Let reliable delivery of the last action complete.
+    std::thread::sleep(Duration::from_millis(200));
+    tracing::info!(
+        "answered {answered} of {total} steps; {}",
+        refusal_summary(&feeds, &joiner)
+    );
+    Ok(answered)
+}

@@ -1,0 +1,263 @@
+//! `causal_arm_reacher`: stands in for the babbler and drives the arm to one target
+//! effector position per episode with a controller of `causal_arm_control`: the
+//! Jacobian baseline, babbling, or the learned inverse model served by a trainer node
+//! (`/trainer/predict_action`, asked each step over DDS).
+//!
+//! Each episode starts from the simulator's reset home pose. Once the effector is within
+//! 5 mm the reacher holds the arm still for the rest of the episode, so an episode of
+//! `max_steps + 1` states scores exactly as `causal-arm reach --in-process` does with
+//! `max_steps`. The report is the same JSON.
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use anyhow::{Context as _, bail};
+use causal_arm_control::{
+    Controller, Episode, ImController, InverseModel, JacobianController, RandomController, Vector3,
+    check_reachable, hold, sample_targets, summarize,
+};
+use causal_arm_kinematics::ArmModel;
+use causal_arm_msgs::srv::{
+    GetModelInfo, GetModelInfo_Request, PredictAction, PredictAction_Request,
+    PredictAction_Response,
+};
+use causal_arm_node::runtime::block_on_timeout;
+use causal_arm_node::{Params, RosArgs, RosNode};
+use causal_arm_protocol::Experiment;
+use ros2_client::Client;
+
+use crate::answer::answer_states;
+use crate::{RunParams, node_param_specs, stop_flag};
+
+/// The trainer's services the IM controller asks.
+pub const PREDICT_ACTION: &str = "/trainer/predict_action";
+/// See [`PREDICT_ACTION`].
+pub const MODEL_INFO: &str = "/trainer/model_info";
+
+/// Runs the reacher node until every episode of the run is answered or SIGINT/SIGTERM.
+pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
+    let mut node = RosNode::new(
+        "causal_arm_reacher",
+        &node_param_specs("causal_arm_reacher")?,
+        ros_args,
+    )?;
+    let run = RunParams::from_params(node.params(), "")?;
+    if run.options.experiment != Experiment::Exp1 {
+        bail!(
+            "the reacher drives exp1 runs (effector targets); got experiment {}",
+            run.options.experiment
+        );
+    }
+    let plan = run.options.plan;
+    if plan.steps_per_episode < 2 {
+        bail!("steps must be at least 2 (the home state and one action per episode)");
+    }
+    let model = ArmModel::embedded();
+    let targets = targets(node.params(), &model, plan.episodes as usize)?;
+    let stop = stop_flag();
+    let mut controller = controller(&mut node, &model, run.options.exp1.sigma, &stop)?;
+    let mut episodes: Vec<Episode> = Vec::with_capacity(targets.len());
+    answer_states(&mut node, &run, 0, &stop, |state, place| {
+        let target = &targets[place.episode as usize];
+        if place.in_episode == 0 {
+            episodes.push(Episode::start(target, state));
+        }
+        let episode = episodes
+            .last_mut()
+            .expect("started at step 0 of its episode");
+        if place.in_episode > 0 && !episode.reached() {
+            episode.record(state);
+        }
+        // The last state of an episode gets no command of the controller: its action's
+        // outcome would be the next episode's reset.
+        let last = place.in_episode + 1 == plan.steps_per_episode;
+        Ok(match episode.reached() || last {
+            true => hold(state),
+            false => controller.command(state, target)?,
+        })
+    })?;
+    let summary = summarize(controller.name(), &episodes);
+    tracing::info!(
+        "{}: {} of {} targets, within 1 cm {:.0} %, within 5 mm {:.0} %",
+        summary.controller,
+        episodes.len(),
+        targets.len(),
+        100.0 * summary.success_1cm,
+        100.0 * summary.success_5mm
+    );
+    let report = node.params().string("report");
+    if !report.is_empty() {
+        let max_steps = plan.steps_per_episode - 1;
+        let step_m = node.params().double("step");
+        let seed = node.params().integer("target_seed");
+        let json = serde_json::json!({"summary": summary, "episodes": episodes, "seed": seed,
+            "max_steps": max_steps, "step_m": step_m, "over": "dds"});
+        std::fs::write(report, serde_json::to_string_pretty(&json)?)
+            .with_context(|| format!("writing the report {report}"))?;
+    }
+    Ok(())
+}
+
+/// One target per episode: those of `targets_file`, or sampled from `target_seed`.
+fn targets(
+    params: &Params,
+    model: &ArmModel,
+    episodes: usize,
+) -> anyhow::Result<Vec<Vector3<f64>>> {
+    let file = params.string("targets_file");
+    let targets = match file {
+        "" => sample_targets(model, episodes, 0.35, params.integer("target_seed") as u64)?,
+        file => read_targets(Path::new(file), model)?,
+    };
+    if targets.len() != episodes {
+        bail!(
+            "{file}: {} targets for a run of {episodes} episodes (one target per episode)",
+            targets.len()
+        );
+    }
+    Ok(targets)
+}
+
+/// Reachable targets from a JSON file `[[x, y, z], …]`.
+fn read_targets(file: &Path, model: &ArmModel) -> anyhow::Result<Vec<Vector3<f64>>> {
+    let text = std::fs::read_to_string(file)
+        .with_context(|| format!("reading the targets file {}", file.display()))?;
+    let points: Vec<[f64; 3]> = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: expected a JSON list of [x, y, z] positions",
+            file.display()
+        )
+    })?;
+    points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let goal = Vector3::from(*p);
+            check_reachable(model, &goal)
+                .with_context(|| format!("{}: target {i}", file.display()))?;
+            Ok(goal)
+        })
+        .collect()
+}
+
+/// The controller the `controller` parameter names.
+fn controller(
+    node: &mut RosNode,
+    model: &ArmModel,
+    sigma: f64,
+    stop: &AtomicBool,
+) -> anyhow::Result<Box<dyn Controller>> {
+    let step = node.params().double("step");
+    let seed = node.params().integer("target_seed") as u64;
+    Ok(match node.params().string("controller") {
+        "jacobian" => Box::new(JacobianController::new(model.clone(), step)),
+        "random" => Box::new(RandomController::new(model, sigma, seed)?),
+        "im" => {
+            let im = ServedIm::connect(node, stop)?;
+            Box::new(ImController::new(model.clone(), im, step))
+        }
+        other => bail!("controller {other:?} is not one of jacobian, im, random"),
+    })
+}
+
+/// The inverse model a trainer node serves, asked over DDS.
+struct ServedIm {
+    client: Client<PredictAction_Request, PredictAction_Response>,
+    /// Which state features, in order, the IM takes as its next state.
+    next: Vec<usize>,
+    timeout: Duration,
+}
+
+impl ServedIm {
+    /// Finds the trainer's services and asks which next-state features its IM takes.
+    fn connect(node: &mut RosNode, stop: &AtomicBool) -> anyhow::Result<Self> {
+        let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+        let settle = Duration::from_millis(500);
+        let info = node.client::<GetModelInfo>(MODEL_INFO)?;
+        let client = node.client::<PredictAction>(PREDICT_ACTION)?;
+        for (name, matched) in [
+            (MODEL_INFO, node.wait_for_service(&info, timeout, settle)),
+            (
+                PREDICT_ACTION,
+                node.wait_for_service(&client, timeout, settle),
+            ),
+        ] {
+            if !matched && !stop.load(std::sync::atomic::Ordering::SeqCst) {
+                bail!(
+                    "no server of {name} within {timeout:?}: start the trainer node on a model directory with an inverse model"
+                );
+            }
+        }
+        let reply = block_on_timeout(
+            info.async_call_service(GetModelInfo_Request::default()),
+            timeout,
+        )
+        .with_context(|| format!("no reply from {MODEL_INFO} within {timeout:?}"))?
+        .map_err(|e| anyhow::anyhow!("calling {MODEL_INFO}: {e:?}"))?;
+        let next = next_state_indices(&reply.state_names, &reply.next_state_names)?;
+        tracing::info!(
+            "asking the served IM ({}) for actions; it takes next-state features {:?}",
+            reply.models.join(", "),
+            reply.next_state_names
+        );
+        Ok(Self {
+            client,
+            next,
+            timeout,
+        })
+    }
+}
+
+/// Where each of the IM's next-state features sits in the state.
+fn next_state_indices(state: &[String], next: &[String]) -> anyhow::Result<Vec<usize>> {
+    if next.is_empty() {
+        bail!("{MODEL_INFO} names no next-state features: the trainer serves no inverse model");
+    }
+    next.iter()
+        .map(|n| {
+            state.iter().position(|s| s == n).with_context(|| {
+                format!("the IM's next-state feature {n} is not a state feature ({state:?})")
+            })
+        })
+        .collect()
+}
+
+impl InverseModel for ServedIm {
+    fn action(&self, state: &[f64], next_state: &[f64]) -> Result<Vec<f64>, String> {
+        let request = PredictAction_Request {
+            state: state.to_vec(),
+            next_state: self.next.iter().map(|&i| next_state[i]).collect(),
+            rows: 1,
+        };
+        let reply = block_on_timeout(self.client.async_call_service(request), self.timeout)
+            .ok_or_else(|| format!("no reply from {PREDICT_ACTION} within {:?}", self.timeout))?
+            .map_err(|e| format!("calling {PREDICT_ACTION}: {e:?}"))?;
+        match reply.success {
+            true => Ok(reply.action),
+            false => Err(format!("{PREDICT_ACTION} refused: {}", reply.message)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ims_next_state_features_are_found_in_the_state_or_named() {
+        let state: Vec<String> = ["theta0", "ef_x", "ef_y"].map(String::from).to_vec();
+        let next = |n: &[&str]| n.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            next_state_indices(&state, &next(&["ef_y", "ef_x"])).unwrap(),
+            [2, 1]
+        );
+        let err = next_state_indices(&state, &next(&["ef_z"])).unwrap_err();
+        assert!(
+            err.to_string().contains("ef_z is not a state feature"),
+            "{err}"
+        );
+        let err = next_state_indices(&state, &[]).unwrap_err();
+        assert!(err.to_string().contains("serves no inverse model"), "{err}");
+    }
+}

@@ -28,7 +28,9 @@ def _reach(run_cli, tmp_path, *args):
 
 
 @pytest.mark.parametrize("controller", [["--controller", "jacobian"],
-                                        ["--controller", "im", "--model-dir", TINY_MODEL, "--max-steps", "30"]])
+                                        ["--controller", "im", "--model-dir", TINY_MODEL, "--max-steps", "30"],
+                                        ["--controller", "fm-mpc", "--model-dir", TINY_MODEL, "--max-steps", "20",
+                                         "--samples", "16", "--iterations", "2"]])
 def test_over_dds_the_nodes_reach_exactly_as_in_process(run_cli, tmp_path, controller):
     """The reacher node (asking the trainer node over DDS for the IM) and the library loop
     give the same episodes, and the recorder's bag holds every step of the run: per target
@@ -74,6 +76,20 @@ def test_a_learned_inverse_model_drives_the_same_loop(run_cli, tmp_path):
     assert im["controller"] == "im" and 0.0 <= im["success_1cm"] <= 1.0
 
 
+def test_fm_mpc_reports_its_planner_beside_the_episodes(run_cli, tmp_path):
+    """The CEM settings, the decisions with their time, and per target how far the FM's
+    prediction of the executed action missed the observed effector."""
+    report = _run(run_cli, tmp_path / "mpc", "--controller", "fm-mpc", "--model-dir", TINY_MODEL,
+                  "--max-steps", "20", "--horizon", "2", "--in-process")
+    planner = report["controller"]
+    assert planner["cem"]["horizon"] == 2 and planner["cem"]["samples"] == 64
+    log = planner["log"]
+    assert log["decisions"] == sum(e["steps"] for e in report["episodes"])
+    assert log["decision_seconds"] > 0
+    errors = log["prediction_error_per_target"]
+    assert len(errors) == 20 and all(e is None or e >= 0 for e in errors)
+
+
 @pytest.mark.parametrize("args,message", [
     (["exp1", "--controller", "im"], "--controller im needs --model-dir"),
     (["exp1", "--controller", "im", "--model-dir", "NOPE"], "NOPE"),
@@ -84,6 +100,13 @@ def test_a_learned_inverse_model_drives_the_same_loop(run_cli, tmp_path):
     (["exp1", "--target", "3", "0", "1"], "--target 3 0 1: out of the arm's reach: target (3.0000, 0.0000, 1.0000) m is unreachable"),
     (["exp1", "--target", "0.4", "0.2"], "3 values required"),
     (["exp1", "--max-steps", "0"], "--max-steps must be a positive number, got 0"),
+    (["exp1", "--controller", "fm-mpc"], "--controller fm-mpc needs --model-dir"),
+    (["exp1", "--controller", "fm-mpc", "--model-dir", TINY_MODEL, "--forward-model", "nope"],
+     "no forward model \"nope\""),
+    (["exp1", "--controller", "fm-mpc", "--model-dir", TINY_MODEL, "--forward-model", "im-mono"],
+     "is an inverse model, not a forward model"),
+    (["exp1", "--controller", "fm-mpc", "--model-dir", TINY_MODEL, "--elites", "99"],
+     "CEM elites must be between 1 and the samples (64), got 99"),
 ])
 def test_bad_reach_options_are_refused(run_cli, tmp_path, args, message):
     r = run_cli("reach", *args, "--out", tmp_path / "out")

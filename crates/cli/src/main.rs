@@ -11,6 +11,7 @@ mod launch_shards;
 mod play_cmd;
 mod progress;
 mod reach_cmd;
+mod reach_models;
 mod rollout_cmd;
 mod security_cmd;
 mod service_cmd;

@@ -8,23 +8,22 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, bail};
 use causal_arm_control::{
-    Controller, Episode, ImController, InverseModel, JacobianController, RandomController, Summary,
-    Vector3, check_reachable, run_episode, sample_targets, summarize,
+    CemSettings, Controller, Episode, ImController, JacobianController, MpcController,
+    RandomController, Summary, Vector3, check_reachable, run_episode, sample_targets, summarize,
 };
 use causal_arm_datagen::GenerateOptions;
 use causal_arm_kinematics::ArmModel;
-use causal_arm_msgs::srv::PredictAction_Request;
 use causal_arm_node::RosArgs;
 use causal_arm_protocol::Experiment;
 use causal_arm_protocol::RunPlan;
 use causal_arm_protocol::graph::graph;
 use causal_arm_sim::{SimConfig, Simulator};
-use causal_arm_trainer::serve::ModelSet;
 use clap::{Args, ValueEnum};
 
 use crate::choice::choice;
 use crate::launch_cmd;
 use crate::progress::Counter;
+use crate::reach_models::{TrainedFm, TrainedIm};
 
 /// Which policy drives the arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -35,6 +34,9 @@ enum ControllerKind {
     Im,
     /// Exp 1's random joint targets (the floor).
     Random,
+    /// Model-predictive control: the cross-entropy method plans in mental simulation with
+    /// the forward model of --model-dir and the first action is executed.
+    FmMpc,
 }
 
 impl ControllerKind {
@@ -44,6 +46,7 @@ impl ControllerKind {
             Self::Jacobian => "jacobian",
             Self::Im => "im",
             Self::Random => "random",
+            Self::FmMpc => "fm-mpc",
         }
     }
 }
@@ -72,12 +75,17 @@ pub struct ReachArgs {
     /// The policy.
     #[arg(long, value_enum, default_value_t = ControllerKind::Jacobian)]
     controller: ControllerKind,
-    /// Model directory of `causal-arm train` (needed by --controller im).
+    /// Model directory of `causal-arm train` (needed by --controller im and fm-mpc).
     #[arg(long)]
     model_dir: Option<PathBuf>,
     /// The inverse model's file name in --model-dir.
     #[arg(long, default_value = "im-mono")]
     inverse_model: String,
+    /// The forward model's file name in --model-dir (fm-mpc).
+    #[arg(long, default_value = "fm")]
+    forward_model: String,
+    #[command(flatten)]
+    cem: CemArgs,
     /// Steps per target before giving up.
     #[arg(long, default_value_t = 300, allow_negative_numbers = true)]
     max_steps: i64,
@@ -100,64 +108,52 @@ pub struct ReachArgs {
     overwrite: bool,
 }
 
-/// The exp 1 inverse model of a model directory, as the trainer node serves it. The IM
-/// may take only some next-state features (the paper's exp 1 IM takes ef(t+1) alone):
-/// `next` lists, in its input order, which state features those are.
-struct TrainedIm {
-    models: ModelSet,
-    next: Vec<usize>,
+/// The cross-entropy method of `--controller fm-mpc` (defaults: `CemSettings::default()`,
+/// which the reacher node's parameters in graph.toml repeat; a test keeps them equal).
+#[derive(Debug, Args)]
+struct CemArgs {
+    /// fm-mpc: steps each sampled action sequence looks ahead.
+    #[arg(long, default_value_t = CemSettings::default().horizon)]
+    horizon: usize,
+    /// fm-mpc: sequences sampled per CEM iteration (one FM batch per horizon step).
+    #[arg(long, default_value_t = CemSettings::default().samples)]
+    samples: usize,
+    /// fm-mpc: best sequences the sampling is refitted to.
+    #[arg(long, default_value_t = CemSettings::default().elites)]
+    elites: usize,
+    /// fm-mpc: CEM iterations per decision.
+    #[arg(long, default_value_t = CemSettings::default().iterations)]
+    iterations: usize,
+    /// fm-mpc: initial spread of each joint delta, rad.
+    #[arg(long, default_value_t = CemSettings::default().spread)]
+    spread: f64,
+    /// fm-mpc: largest joint delta of one step, rad.
+    #[arg(long, default_value_t = CemSettings::default().max_delta)]
+    max_delta: f64,
 }
 
-impl TrainedIm {
-    /// The IM `name` of `dir`, its next-state inputs read from its model file.
-    fn load(dir: &std::path::Path, name: &str) -> anyhow::Result<Self> {
-        // Reaching needs no forward model: the IM stands in for it in the set.
-        let models = ModelSet::load(dir, name, name)
-            .with_context(|| format!("loading the models in {}", dir.display()))?;
-        let file = dir.join(format!("{name}.json"));
-        let meta: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(&file)
-                .with_context(|| format!("reading {}", file.display()))?,
-        )
-        .with_context(|| format!("parsing {}", file.display()))?;
-        let state = causal_arm_dataset::state_names(Experiment::Exp1);
-        let inputs = meta["problem"]["input_names"]
-            .as_array()
-            .cloned()
-            .unwrap_or_default();
-        let next = inputs
-            .iter()
-            .filter_map(|n| n.as_str()?.strip_suffix("_next"))
-            .map(|n| {
-                state.iter().position(|s| s == n).with_context(|| {
-                    format!(
-                        "{}: input {n}_next is not an exp1 state feature",
-                        file.display()
-                    )
-                })
-            })
-            .collect::<anyhow::Result<Vec<_>>>()?;
-        if next.is_empty() || !meta["problem"]["output_names"].to_string().contains("a0") {
-            bail!(
-                "{} is not an exp1 inverse model (inputs {inputs:?})",
-                file.display()
-            );
+impl CemArgs {
+    fn settings(&self) -> CemSettings {
+        CemSettings {
+            horizon: self.horizon,
+            samples: self.samples,
+            elites: self.elites,
+            iterations: self.iterations,
+            spread: self.spread,
+            max_delta: self.max_delta,
         }
-        Ok(Self { models, next })
     }
-}
 
-impl InverseModel for TrainedIm {
-    fn action(&self, state: &[f64], next_state: &[f64]) -> Result<Vec<f64>, String> {
-        let reply = self.models.predict_action(&PredictAction_Request {
-            state: state.to_vec(),
-            next_state: self.next.iter().map(|&i| next_state[i]).collect(),
-            rows: 1,
-        });
-        match reply.success {
-            true => Ok(reply.action),
-            false => Err(reply.message),
-        }
+    /// The same settings as the reacher node's parameters.
+    fn ros_params(&self) -> [String; 6] {
+        [
+            format!("horizon:={}", self.horizon),
+            format!("samples:={}", self.samples),
+            format!("elites:={}", self.elites),
+            format!("iterations:={}", self.iterations),
+            format!("spread:={:?}", self.spread),
+            format!("max_delta:={:?}", self.max_delta),
+        ]
     }
 }
 
@@ -235,7 +231,8 @@ fn in_process(
     counter.finish();
     let summary = summarize(controller.name(), &episodes);
     let report = serde_json::json!({"summary": summary, "episodes": episodes, "seed": args.seed,
-        "max_steps": max_steps, "step_m": args.step, "over": "process"});
+        "max_steps": max_steps, "step_m": args.step, "over": "process",
+        "controller": controller.report()});
     std::fs::write(file, serde_json::to_string_pretty(&report)?)
         .with_context(|| format!("writing {}", file.display()))?;
     Ok(summary)
@@ -274,16 +271,19 @@ fn over_dds(
     if file.exists() {
         std::fs::remove_file(file).with_context(|| format!("replacing {}", file.display()))?;
     }
-    let reacher = [
+    let mut reacher = vec![
         format!("controller:={}", args.controller.name()),
         format!("step:={:?}", args.step),
         format!("target_seed:={}", args.seed),
         format!("targets_file:={}", targets_file.display()),
         format!("report:={}", file.display()),
     ];
+    reacher.extend(args.cem.ros_params());
     let commands = with_reacher(launch_cmd::node_commands(&options)?, &reacher, ros_args)?;
     let mut trainer = match args.controller {
-        ControllerKind::Im => launch_cmd::spawn_nodes(vec![trainer_command(args, ros_args)?])?,
+        ControllerKind::Im | ControllerKind::FmMpc => {
+            launch_cmd::spawn_nodes(vec![trainer_command(args, ros_args)?])?
+        }
         _ => Vec::new(),
     };
     let outcome = launch_cmd::run_graph(&options, commands, ros_args);
@@ -327,14 +327,16 @@ fn with_reacher(
 
 /// The trainer node serving --model-dir's IM (for both services: reaching needs no FM).
 fn trainer_command(args: &ReachArgs, ros_args: &RosArgs) -> anyhow::Result<(String, Vec<String>)> {
-    let dir = args
-        .model_dir
-        .as_ref()
-        .context("--controller im needs --model-dir")?;
+    let dir = model_dir(args)?;
+    // IM reaching asks no FM: the IM serves both services.
+    let forward = match args.controller {
+        ControllerKind::FmMpc => &args.forward_model,
+        _ => &args.inverse_model,
+    };
     let mut node_args: Vec<String> = vec!["--ros-args".into()];
     for p in [
         format!("model_dir:={}", dir.display()),
-        format!("forward_model:={}", args.inverse_model),
+        format!("forward_model:={forward}"),
         format!("inverse_model:={}", args.inverse_model),
     ] {
         node_args.extend(["-p".to_owned(), p]);
@@ -350,12 +352,23 @@ fn controller(args: &ReachArgs, model: &ArmModel) -> anyhow::Result<Box<dyn Cont
         ControllerKind::Jacobian => Box::new(JacobianController::new(model.clone(), args.step)),
         ControllerKind::Random => Box::new(RandomController::new(model, 0.35, args.seed)?),
         ControllerKind::Im => {
-            let dir = args.model_dir.as_ref().context(
-                "--controller im needs --model-dir (a directory written by `causal-arm train`)",
-            )?;
-            let im = TrainedIm::load(dir, &args.inverse_model)?;
+            let im = TrainedIm::load(model_dir(args)?, &args.inverse_model)?;
             Box::new(ImController::new(model.clone(), im, args.step))
         }
+        ControllerKind::FmMpc => {
+            let fm = TrainedFm::load(model_dir(args)?, &args.forward_model)?;
+            let settings = args.cem.settings();
+            Box::new(MpcController::new(model.clone(), fm, settings, args.seed)?)
+        }
+    })
+}
+
+fn model_dir(args: &ReachArgs) -> anyhow::Result<&Path> {
+    args.model_dir.as_deref().with_context(|| {
+        format!(
+            "--controller {} needs --model-dir (a directory written by `causal-arm train`)",
+            args.controller.name()
+        )
     })
 }
 
@@ -363,5 +376,35 @@ fn positive(value: i64, flag: &str) -> anyhow::Result<usize> {
     match value {
         v if v > 0 => Ok(v as usize),
         v => bail!("{flag} must be a positive number, got {v}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use causal_arm_protocol::graph::ParamDefault;
+
+    #[test]
+    fn the_reacher_nodes_cem_defaults_are_the_librarys() {
+        let reacher = graph().unwrap().node("causal_arm_reacher").unwrap();
+        let default = |name: &str| -> f64 {
+            match reacher
+                .params
+                .iter()
+                .find(|p| p.name == name)
+                .map(|p| &p.default)
+            {
+                Some(ParamDefault::Integer(v)) => *v as f64,
+                Some(ParamDefault::Double(v)) => *v,
+                other => panic!("reacher parameter {name}: {other:?}"),
+            }
+        };
+        let d = CemSettings::default();
+        assert_eq!(default("horizon"), d.horizon as f64);
+        assert_eq!(default("samples"), d.samples as f64);
+        assert_eq!(default("elites"), d.elites as f64);
+        assert_eq!(default("iterations"), d.iterations as f64);
+        assert_eq!(default("spread"), d.spread);
+        assert_eq!(default("max_delta"), d.max_delta);
     }
 }

@@ -11,6 +11,12 @@
 //!   the joint step that moves ef by the clipped Δef (a Jacobian step), its ef* is ef + Δef.
 //!   Giving the IM θ* = θ with a moved ef would ask it for a contradiction.
 //! - [`RandomController`]: motor babbling, exp 1's random joint targets, as the floor.
+//! - [`MpcController`]: model-predictive control with a learned forward model, planned
+//!   by the cross-entropy method in mental simulation ([`mpc`]).
+
+pub mod mpc;
+
+pub use mpc::{CemSettings, ForwardModel, MpcController, MpcLog};
 
 use causal_arm_kinematics::{ArmModel, IkOptions, IkTarget};
 use causal_arm_protocol::{ARM_DOF, Command, SimState};
@@ -112,6 +118,11 @@ pub trait Controller {
     /// The command for this step.
     fn command(&mut self, state: &SimState, target: &Vector3<f64>)
     -> Result<Command, ControlError>;
+    /// What the controller has to report beyond the episodes (its settings, time per
+    /// decision, its model's accuracy along the way); nothing by default.
+    fn report(&self) -> serde_json::Value {
+        serde_json::Value::Null
+    }
 }
 
 /// Moves toward the target by at most `max_step` metres per step, through the Jacobian.
@@ -155,6 +166,26 @@ impl Controller for JacobianController {
 pub trait InverseModel {
     /// The action for `state` → `next_state` (exp 1: θ and ef, 10 features each).
     fn action(&self, state: &[f64], next_state: &[f64]) -> Result<Vec<f64>, String>;
+}
+
+/// Where each next-state feature an inverse model takes (as `/trainer/model_info` names
+/// them) sits in the state (`state`: the state's feature names), so the controller can
+/// hand it exactly those features of the intermediate state.
+pub fn next_state_indices(state: &[String], next: &[String]) -> Result<Vec<usize>, ControlError> {
+    if next.is_empty() {
+        return Err(ControlError::Model(
+            "it names no next-state features: not an inverse model".into(),
+        ));
+    }
+    next.iter()
+        .map(|n| {
+            state.iter().position(|s| s == n).ok_or_else(|| {
+                ControlError::Model(format!(
+                    "its next-state feature {n} is not a state feature ({state:?})"
+                ))
+            })
+        })
+        .collect()
 }
 
 /// Asks an inverse model for the action toward an intermediate state each step.
@@ -475,6 +506,23 @@ fn kinematics_err(e: impl std::fmt::Display) -> ControlError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_ims_next_state_features_are_found_in_the_state_or_named() {
+        let names = |n: &[&str]| n.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let state = names(&["theta0", "ef_x", "ef_y"]);
+        assert_eq!(
+            next_state_indices(&state, &names(&["ef_y", "ef_x"])).unwrap(),
+            [2, 1]
+        );
+        let err = next_state_indices(&state, &names(&["ef_z"])).unwrap_err();
+        assert!(
+            err.to_string().contains("ef_z is not a state feature"),
+            "{err}"
+        );
+        let err = next_state_indices(&state, &[]).unwrap_err();
+        assert!(err.to_string().contains("not an inverse model"), "{err}");
+    }
     use causal_arm_sim::SimConfig;
 
     fn sim() -> Simulator {

@@ -14,13 +14,14 @@ use std::time::Duration;
 
 use anyhow::{Context as _, bail};
 use causal_arm_control::{
-    Controller, Episode, ImController, InverseModel, JacobianController, RandomController, Vector3,
-    check_reachable, hold, sample_targets, summarize,
+    CemSettings, Controller, Episode, ForwardModel, ImController, InverseModel, JacobianController,
+    MpcController, RandomController, Vector3, check_reachable, hold, next_state_indices,
+    sample_targets, summarize,
 };
 use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::srv::{
     GetModelInfo, GetModelInfo_Request, PredictAction, PredictAction_Request,
-    PredictAction_Response,
+    PredictAction_Response, PredictNextState, PredictNextState_Request, PredictNextState_Response,
 };
 use causal_arm_node::runtime::block_on_timeout;
 use causal_arm_node::{Params, RosArgs, RosNode};
@@ -34,6 +35,10 @@ use crate::{RunParams, node_param_specs, stop_flag};
 pub const PREDICT_ACTION: &str = "/trainer/predict_action";
 /// See [`PREDICT_ACTION`].
 pub const MODEL_INFO: &str = "/trainer/model_info";
+/// The trainer's service the FM-MPC controller asks (one batch per horizon step of each
+/// CEM iteration, every sampled sequence a row: `/trainer/rollout` takes one sequence
+/// per call).
+pub const PREDICT_NEXT_STATE: &str = "/trainer/predict_next_state";
 
 /// Runs the reacher node until every episode of the run is answered or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
@@ -92,7 +97,8 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         let step_m = node.params().double("step");
         let seed = node.params().integer("target_seed");
         let json = serde_json::json!({"summary": summary, "episodes": episodes, "seed": seed,
-            "max_steps": max_steps, "step_m": step_m, "over": "dds"});
+            "max_steps": max_steps, "step_m": step_m, "over": "dds",
+            "controller": controller.report()});
         std::fs::write(report, serde_json::to_string_pretty(&json)?)
             .with_context(|| format!("writing the report {report}"))?;
     }
@@ -157,8 +163,93 @@ fn controller(
             let im = ServedIm::connect(node, stop)?;
             Box::new(ImController::new(model.clone(), im, step))
         }
-        other => bail!("controller {other:?} is not one of jacobian, im, random"),
+        "fm-mpc" => {
+            let settings = cem_settings(node.params())?;
+            let fm = ServedFm::connect(node, stop)?;
+            Box::new(MpcController::new(model.clone(), fm, settings, seed)?)
+        }
+        other => bail!("controller {other:?} is not one of jacobian, im, fm-mpc, random"),
     })
+}
+
+/// The cross-entropy method's settings from the node's parameters.
+fn cem_settings(params: &Params) -> anyhow::Result<CemSettings> {
+    let count = |name: &str| -> anyhow::Result<usize> {
+        usize::try_from(params.integer(name))
+            .with_context(|| format!("parameter {name} must not be negative"))
+    };
+    Ok(CemSettings {
+        horizon: count("horizon")?,
+        samples: count("samples")?,
+        elites: count("elites")?,
+        iterations: count("iterations")?,
+        spread: params.double("spread"),
+        max_delta: params.double("max_delta"),
+    })
+}
+
+/// Waits for the trainer's `service` (as `client` asks it), naming what to start if it
+/// does not appear; returns early on SIGINT.
+fn await_trainer<Req, Resp>(
+    node: &RosNode,
+    client: &Client<Req, Resp>,
+    service: &str,
+    stop: &AtomicBool,
+) -> anyhow::Result<()>
+where
+    Req: ros2_client::Message + 'static,
+    Resp: ros2_client::Message + 'static,
+{
+    let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+    let matched = node.wait_for_service(client, timeout, Duration::from_millis(500));
+    if !matched && !stop.load(std::sync::atomic::Ordering::SeqCst) {
+        bail!(
+            "no server of {service} within {timeout:?}: start the trainer node on a model directory (`causal_arm_trainer --ros-args -p model_dir:=DIR`)"
+        );
+    }
+    Ok(())
+}
+
+/// The forward model a trainer node serves, asked over DDS.
+struct ServedFm {
+    client: Client<PredictNextState_Request, PredictNextState_Response>,
+    timeout: Duration,
+}
+
+impl ServedFm {
+    fn connect(node: &mut RosNode, stop: &AtomicBool) -> anyhow::Result<Self> {
+        let client = node.client::<PredictNextState>(PREDICT_NEXT_STATE)?;
+        await_trainer(node, &client, PREDICT_NEXT_STATE, stop)?;
+        let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+        Ok(Self { client, timeout })
+    }
+}
+
+impl ForwardModel for ServedFm {
+    fn next_states(
+        &self,
+        states: &[f64],
+        actions: &[f64],
+        rows: usize,
+    ) -> Result<Vec<f64>, String> {
+        let request = PredictNextState_Request {
+            state: states.to_vec(),
+            action: actions.to_vec(),
+            rows: rows as u32,
+        };
+        let reply = block_on_timeout(self.client.async_call_service(request), self.timeout)
+            .ok_or_else(|| {
+                format!(
+                    "no reply from {PREDICT_NEXT_STATE} within {:?}",
+                    self.timeout
+                )
+            })?
+            .map_err(|e| format!("calling {PREDICT_NEXT_STATE}: {e:?}"))?;
+        match reply.success {
+            true => Ok(reply.next_state),
+            false => Err(format!("{PREDICT_NEXT_STATE} refused: {}", reply.message)),
+        }
+    }
 }
 
 /// The inverse model a trainer node serves, asked over DDS.
@@ -173,29 +264,18 @@ impl ServedIm {
     /// Finds the trainer's services and asks which next-state features its IM takes.
     fn connect(node: &mut RosNode, stop: &AtomicBool) -> anyhow::Result<Self> {
         let timeout = Duration::from_secs_f64(node.params().double("timeout"));
-        let settle = Duration::from_millis(500);
         let info = node.client::<GetModelInfo>(MODEL_INFO)?;
         let client = node.client::<PredictAction>(PREDICT_ACTION)?;
-        for (name, matched) in [
-            (MODEL_INFO, node.wait_for_service(&info, timeout, settle)),
-            (
-                PREDICT_ACTION,
-                node.wait_for_service(&client, timeout, settle),
-            ),
-        ] {
-            if !matched && !stop.load(std::sync::atomic::Ordering::SeqCst) {
-                bail!(
-                    "no server of {name} within {timeout:?}: start the trainer node on a model directory with an inverse model"
-                );
-            }
-        }
+        await_trainer(node, &info, MODEL_INFO, stop)?;
+        await_trainer(node, &client, PREDICT_ACTION, stop)?;
         let reply = block_on_timeout(
             info.async_call_service(GetModelInfo_Request::default()),
             timeout,
         )
         .with_context(|| format!("no reply from {MODEL_INFO} within {timeout:?}"))?
         .map_err(|e| anyhow::anyhow!("calling {MODEL_INFO}: {e:?}"))?;
-        let next = next_state_indices(&reply.state_names, &reply.next_state_names)?;
+        let next = next_state_indices(&reply.state_names, &reply.next_state_names)
+            .with_context(|| format!("the model {MODEL_INFO} describes"))?;
         tracing::info!(
             "asking the served IM ({}) for actions; it takes next-state features {:?}",
             reply.models.join(", "),
@@ -207,20 +287,6 @@ impl ServedIm {
             timeout,
         })
     }
-}
-
-/// Where each of the IM's next-state features sits in the state.
-fn next_state_indices(state: &[String], next: &[String]) -> anyhow::Result<Vec<usize>> {
-    if next.is_empty() {
-        bail!("{MODEL_INFO} names no next-state features: the trainer serves no inverse model");
-    }
-    next.iter()
-        .map(|n| {
-            state.iter().position(|s| s == n).with_context(|| {
-                format!("the IM's next-state feature {n} is not a state feature ({state:?})")
-            })
-        })
-        .collect()
 }
 
 impl InverseModel for ServedIm {
@@ -237,27 +303,5 @@ impl InverseModel for ServedIm {
             true => Ok(reply.action),
             false => Err(format!("{PREDICT_ACTION} refused: {}", reply.message)),
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_ims_next_state_features_are_found_in_the_state_or_named() {
-        let state: Vec<String> = ["theta0", "ef_x", "ef_y"].map(String::from).to_vec();
-        let next = |n: &[&str]| n.iter().map(|s| s.to_string()).collect::<Vec<_>>();
-        assert_eq!(
-            next_state_indices(&state, &next(&["ef_y", "ef_x"])).unwrap(),
-            [2, 1]
-        );
-        let err = next_state_indices(&state, &next(&["ef_z"])).unwrap_err();
-        assert!(
-            err.to_string().contains("ef_z is not a state feature"),
-            "{err}"
-        );
-        let err = next_state_indices(&state, &[]).unwrap_err();
-        assert!(err.to_string().contains("serves no inverse model"), "{err}");
     }
 }

@@ -96,7 +96,7 @@ def test_fm_mpc_reports_its_planner_beside_the_episodes(run_cli, tmp_path):
     (["exp1", "--controller", "im", "--model-dir", TINY_MODEL, "--inverse-model", "fm"], "not an exp1 inverse model"),
     (["exp1", "--targets", "0"], "--targets must be a positive number, got 0"),
     (["exp1", "--step", "-0.1"], "--step must be a positive number of metres"),
-    (["exp2"], "reach exp2 is not built yet"),
+    (["exp2", "--controller", "im", "--model-dir", TINY_MODEL], "holds exp1 models; this reach drives exp2"),
     (["exp1", "--target", "3", "0", "1"], "--target 3 0 1: out of the arm's reach: target (3.0000, 0.0000, 1.0000) m is unreachable"),
     (["exp1", "--target", "0.4", "0.2"], "3 values required"),
     (["exp1", "--max-steps", "0"], "--max-steps must be a positive number, got 0"),
@@ -118,3 +118,36 @@ def test_a_bag_of_an_earlier_run_is_kept_unless_overwrite_is_given(run_cli, tmp_
     assert run_cli("reach", "exp1", "--targets", "1", "--max-steps", "5", "--out", out).returncode == 0
     r = run_cli("reach", "exp1", "--targets", "1", "--max-steps", "5", "--out", out)
     assert r.returncode != 0 and "already holds a bag" in r.stderr and "--overwrite" in r.stderr, r.stderr
+
+
+@pytest.fixture(scope="module")
+def exp2_models(tmp_path_factory, run_cli):
+    """A small exp 2 FM and IM (4 episodes, 2 epochs): enough to drive the exp 2 layout."""
+    d = tmp_path_factory.mktemp("exp2_models")
+    r = run_cli("generate", "exp2", "--profile", "quick", "--episodes", "4", "--seed", "3", "--out", d / "bag")
+    assert r.returncode == 0, r.stderr
+    for model in ("fm", "im-mono"):
+        r = run_cli("train", "--bag", d / "bag", "--model", model, "--profile", "quick", "--epochs", "2",
+                    "--folds", "2", "--max-folds", "1", "--out", d / "models", "--cache", d / "cache", timeout=300)
+        assert r.returncode == 0, r.stderr
+    return d / "models"
+
+
+@pytest.mark.parametrize("controller", ["jacobian", "im", "fm-mpc"])
+def test_exp2_reaching_runs_over_dds_exactly_as_in_process(run_cli, tmp_path, exp2_models, controller):
+    """Exp 2: targets above the table; the IM and FM are asked with exp 2's 23-feature state
+    (cube, effector orientation, magnet), over DDS as in process."""
+    args = ["--controller", controller, "--model-dir", exp2_models, "--max-steps", "15",
+            "--samples", "16", "--iterations", "2"]
+    runs = {}
+    for where, extra in (("dds", []), ("local", ["--in-process"])):
+        r = run_cli("reach", "exp2", "--targets", "6", "--seed", "2", *args, *extra, "--out", tmp_path / where,
+                    timeout=300)
+        assert r.returncode == 0, r.stderr
+        runs[where] = json.loads((tmp_path / where / "report.json").read_text())
+    assert runs["dds"]["episodes"] == runs["local"]["episodes"]
+    for e in runs["dds"]["episodes"]:
+        x, y, z = e["target"]
+        assert abs(x - 0.58) <= 0.2 and abs(y) <= 0.3 and 0.25 <= z <= 0.5, e
+    if controller == "jacobian":
+        assert runs["dds"]["summary"]["success_5mm"] == 1.0, runs["dds"]["summary"]

@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context as _, bail};
 use causal_arm_control::{
     CemSettings, Controller, Episode, ImController, JacobianController, MpcController,
-    RandomController, Summary, Vector3, check_reachable, run_episode, sample_targets, summarize,
+    RandomController, StateLayout, Summary, Vector3, check_reachable, experiment_targets,
+    run_episode, summarize,
 };
 use causal_arm_datagen::GenerateOptions;
 use causal_arm_kinematics::ArmModel;
@@ -17,7 +18,6 @@ use causal_arm_node::RosArgs;
 use causal_arm_protocol::Experiment;
 use causal_arm_protocol::RunPlan;
 use causal_arm_protocol::graph::graph;
-use causal_arm_sim::{SimConfig, Simulator};
 use clap::{Args, ValueEnum};
 
 use crate::choice::choice;
@@ -54,7 +54,7 @@ impl ControllerKind {
 /// `causal-arm reach` options.
 #[derive(Debug, Args)]
 pub struct ReachArgs {
-    /// exp1 (exp2 is not built yet).
+    /// exp1 or exp2 (targets where that experiment babbles, its models' state layout).
     #[arg(value_parser = choice::<Experiment>())]
     experiment: Experiment,
     /// Target effector positions to reach, sampled where exp 1 babbles.
@@ -159,9 +159,6 @@ impl CemArgs {
 
 /// Runs `causal-arm reach`.
 pub fn run(args: &ReachArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
-    if args.experiment != Experiment::Exp1 {
-        bail!("reach exp2 is not built yet: only exp1 targets (effector positions) are");
-    }
     let (targets, max_steps) = (
         positive(args.targets, "--targets")?,
         positive(args.max_steps, "--max-steps")?,
@@ -174,7 +171,7 @@ pub fn run(args: &ReachArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     }
     let model = ArmModel::embedded();
     let goals = match args.target.as_slice() {
-        [] => sample_targets(&model, targets, 0.35, args.seed)?,
+        [] => experiment_targets(args.experiment, &model, targets, args.seed)?,
         given => given
             .chunks(3)
             .map(|p| {
@@ -217,7 +214,8 @@ fn in_process(
     max_steps: usize,
     file: &Path,
 ) -> anyhow::Result<Summary> {
-    let mut sim = Simulator::new(SimConfig::default())?;
+    // The simulator the simulator node would run for the same run.
+    let mut sim = causal_arm_datagen::simulator(&run_options(args, goals.len(), max_steps))?;
     let mut counter = Counter::new(
         goals.len() as u64,
         &format!("reach with {}", controller.name()),
@@ -225,6 +223,9 @@ fn in_process(
     );
     let mut episodes: Vec<Episode> = Vec::with_capacity(goals.len());
     for (i, goal) in goals.iter().enumerate() {
+        if i > 0 {
+            sim.reset_episode();
+        }
         episodes.push(run_episode(&mut sim, controller, goal, max_steps)?);
         counter.set(i as u64 + 1);
     }
@@ -238,6 +239,16 @@ fn in_process(
     Ok(summary)
 }
 
+/// The run the simulator node makes of `episodes` targets: an episode of `max_steps + 1`
+/// states per target, recorded into OUT/bag.
+fn run_options(args: &ReachArgs, episodes: usize, max_steps: usize) -> GenerateOptions {
+    let plan = RunPlan {
+        episodes: episodes as u64,
+        steps_per_episode: max_steps as u64 + 1,
+    };
+    GenerateOptions::new(args.experiment, plan, args.seed, args.out.join("bag"))
+}
+
 /// Reaches every goal over DDS: the simulator, recorder and reacher nodes (and, for the
 /// IM, a trainer node serving --model-dir) as separate processes, one episode per goal
 /// of `max_steps + 1` states (the reacher holds the arm once within 5 mm). The recorder
@@ -249,11 +260,7 @@ fn over_dds(
     max_steps: usize,
     file: &Path,
 ) -> anyhow::Result<Summary> {
-    let plan = RunPlan {
-        episodes: goals.len() as u64,
-        steps_per_episode: max_steps as u64 + 1,
-    };
-    let mut options = GenerateOptions::new(Experiment::Exp1, plan, args.seed, args.out.join("bag"));
+    let mut options = run_options(args, goals.len(), max_steps);
     options.overwrite = args.overwrite;
     causal_arm_datagen::validate(&options)?;
     if !options.overwrite
@@ -352,13 +359,20 @@ fn controller(args: &ReachArgs, model: &ArmModel) -> anyhow::Result<Box<dyn Cont
         ControllerKind::Jacobian => Box::new(JacobianController::new(model.clone(), args.step)),
         ControllerKind::Random => Box::new(RandomController::new(model, 0.35, args.seed)?),
         ControllerKind::Im => {
-            let im = TrainedIm::load(model_dir(args)?, &args.inverse_model)?;
-            Box::new(ImController::new(model.clone(), im, args.step))
+            let im = TrainedIm::load(model_dir(args)?, &args.inverse_model, args.experiment)?;
+            let layout = StateLayout::of(args.experiment, model);
+            Box::new(ImController::new(model.clone(), layout, im, args.step))
         }
         ControllerKind::FmMpc => {
-            let fm = TrainedFm::load(model_dir(args)?, &args.forward_model)?;
-            let settings = args.cem.settings();
-            Box::new(MpcController::new(model.clone(), fm, settings, args.seed)?)
+            let fm = TrainedFm::load(model_dir(args)?, &args.forward_model, args.experiment)?;
+            let (layout, settings) = (StateLayout::of(args.experiment, model), args.cem.settings());
+            Box::new(MpcController::new(
+                model.clone(),
+                layout,
+                fm,
+                settings,
+                args.seed,
+            )?)
         }
     })
 }

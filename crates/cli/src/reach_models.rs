@@ -1,5 +1,5 @@
 //! The models of a `causal-arm train` directory, as `reach --in-process` hands them to
-//! the controllers: the same `ModelSet` the trainer node serves, asked directly.
+//! the controllers (either experiment's): the same `ModelSet` the trainer node serves, asked directly.
 
 use std::path::Path;
 
@@ -9,7 +9,7 @@ use causal_arm_msgs::srv::{GetModelInfo_Request, PredictAction_Request, PredictN
 use causal_arm_protocol::Experiment;
 use causal_arm_trainer::serve::ModelSet;
 
-/// The exp 1 inverse model of a model directory. The IM may take only some next-state
+/// The inverse model of a model directory. The IM may take only some next-state
 /// features (the paper's exp 1 IM takes ef(t+1) alone): `next` lists, in its input
 /// order, which state features those are.
 pub struct TrainedIm {
@@ -18,17 +18,18 @@ pub struct TrainedIm {
 }
 
 impl TrainedIm {
-    /// The IM `name` of `dir`, its next-state inputs as the trainer node describes them.
-    pub fn load(dir: &Path, name: &str) -> anyhow::Result<Self> {
+    /// The IM `name` of `dir` for `experiment`, its next-state inputs as the trainer
+    /// node describes them.
+    pub fn load(dir: &Path, name: &str, experiment: Experiment) -> anyhow::Result<Self> {
         // Reaching needs no forward model: the IM stands in for it in the set.
-        let models = load_exp1(dir, name, name)?;
+        let models = load_for(dir, name, experiment)?;
         let info = models.model_info(&GetModelInfo_Request {
             model: name.to_owned(),
         });
         let file = dir.join(format!("{name}.json"));
         if !info.action_names.iter().any(|a| a == "a0") {
             bail!(
-                "{} is not an exp1 inverse model (it predicts {:?}, not the actions)",
+                "{} is not an {experiment} inverse model (it predicts {:?}, not the actions)",
                 file.display(),
                 info.action_names
             );
@@ -53,17 +54,17 @@ impl InverseModel for TrainedIm {
     }
 }
 
-/// The exp 1 forward model of a model directory.
+/// The forward model of a model directory.
 pub struct TrainedFm {
     models: ModelSet,
 }
 
 impl TrainedFm {
-    /// The FM `name` of `dir`.
-    pub fn load(dir: &Path, name: &str) -> anyhow::Result<Self> {
+    /// The FM `name` of `dir` for `experiment`.
+    pub fn load(dir: &Path, name: &str, experiment: Experiment) -> anyhow::Result<Self> {
         // Described as the set's inverse model, a model names its own outputs: an IM
         // predicts the actions, an FM the state.
-        let models = load_exp1(dir, name, name)?;
+        let models = load_for(dir, name, experiment)?;
         let info = models.model_info(&GetModelInfo_Request {
             model: name.to_owned(),
         });
@@ -96,13 +97,14 @@ impl ForwardModel for TrainedFm {
     }
 }
 
-/// The models of `dir`, which must be exp 1's.
-fn load_exp1(dir: &Path, forward: &str, inverse: &str) -> anyhow::Result<ModelSet> {
-    let models = ModelSet::load(dir, forward, inverse)
+/// The models of `dir` with `name` described as the set's inverse model (so a model names
+/// its own outputs), which must be `experiment`'s.
+fn load_for(dir: &Path, name: &str, experiment: Experiment) -> anyhow::Result<ModelSet> {
+    let models = ModelSet::load(dir, name, name)
         .with_context(|| format!("loading the models in {}", dir.display()))?;
-    if models.experiment() != Experiment::Exp1 {
+    if models.experiment() != experiment {
         bail!(
-            "{} holds {} models; reaching drives exp1",
+            "{} holds {} models; this reach drives {experiment}",
             dir.display(),
             models.experiment()
         );

@@ -14,12 +14,14 @@
 //! - [`MpcController`]: model-predictive control with a learned forward model, planned
 //!   by the cross-entropy method in mental simulation ([`mpc`]).
 
+pub mod layout;
 pub mod mpc;
 
+pub use layout::StateLayout;
 pub use mpc::{CemSettings, ForwardModel, MpcController, MpcLog};
 
 use causal_arm_kinematics::{ArmModel, IkOptions, IkTarget};
-use causal_arm_protocol::{ARM_DOF, Command, SimState};
+use causal_arm_protocol::{ARM_DOF, Command, Experiment, Scene, SimState};
 use causal_arm_sim::Simulator;
 use nalgebra::Matrix3;
 /// Targets and displacements are nalgebra vectors (re-exported so callers need not pin it).
@@ -64,6 +66,53 @@ pub fn sample_targets(
             Ok(pose.translation.vector)
         })
         .collect()
+}
+
+/// Reachable targets where exp 2 works: uniform over the table's top, 5 to 30 cm above
+/// it (each checked reachable; the IK's solution then lies within the joint limits).
+pub fn sample_table_targets(
+    model: &ArmModel,
+    scene: &Scene,
+    count: usize,
+    seed: u64,
+) -> Result<Vec<Vector3<f64>>, ControlError> {
+    use rand::Rng as _;
+    let mut rng = StdRng::seed_from_u64(seed);
+    let [cx, cy] = scene.table_center;
+    let [hx, hy] = scene.table_half_extents;
+    let mut targets = Vec::with_capacity(count);
+    let mut tries = 0;
+    while targets.len() < count {
+        tries += 1;
+        if tries > 100 * count + 1000 {
+            return Err(ControlError::Options(
+                "no reachable targets above the table".into(),
+            ));
+        }
+        let goal = Vector3::new(
+            rng.random_range(cx - hx..=cx + hx),
+            rng.random_range(cy - hy..=cy + hy),
+            scene.table_top_z + rng.random_range(0.05..=0.30),
+        );
+        if check_reachable(model, &goal).is_ok() {
+            targets.push(goal);
+        }
+    }
+    Ok(targets)
+}
+
+/// Targets for `experiment`: where its babbler moves the effector (exp 1 joint draws of
+/// spread 0.35 rad, exp 2 the space above the table).
+pub fn experiment_targets(
+    experiment: Experiment,
+    model: &ArmModel,
+    count: usize,
+    seed: u64,
+) -> Result<Vec<Vector3<f64>>, ControlError> {
+    match experiment {
+        Experiment::Exp1 => sample_targets(model, count, 0.35, seed),
+        Experiment::Exp2 => sample_table_targets(model, &Scene::default(), count, seed),
+    }
 }
 
 /// How close IK must bring the effector to a target for it to count as reachable, m.
@@ -191,6 +240,7 @@ pub fn next_state_indices(state: &[String], next: &[String]) -> Result<Vec<usize
 /// Asks an inverse model for the action toward an intermediate state each step.
 pub struct ImController<M> {
     model: ArmModel,
+    layout: StateLayout,
     im: M,
     /// Largest effector displacement asked for in one step, m.
     pub max_step: f64,
@@ -211,10 +261,12 @@ struct Stall {
 const STALL_STEPS: usize = 20;
 
 impl<M: InverseModel> ImController<M> {
-    /// An IM controller of `model` with the given step limit.
-    pub fn new(model: ArmModel, im: M, max_step: f64) -> Self {
+    /// An IM controller of `model`, for states laid out as `layout`, with the given step
+    /// limit.
+    pub fn new(model: ArmModel, layout: StateLayout, im: M, max_step: f64) -> Self {
         Self {
             model,
+            layout,
             im,
             max_step,
             stall: Stall {
@@ -227,8 +279,8 @@ impl<M: InverseModel> ImController<M> {
         }
     }
 
-    /// s(t), the intermediate s* it asks the IM about (exp 1 state layout), and the
-    /// factor the IM's action is scaled by.
+    /// s(t), the intermediate s* it asks the IM about (the arm moved, the rest of the
+    /// state as it is), and the factor the IM's action is scaled by.
     ///
     /// s* always lies a full `max_step` toward the target. Closer to the target than
     /// that, the action for the full step is scaled down to the remaining distance,
@@ -251,9 +303,12 @@ impl<M: InverseModel> ImController<M> {
             (Vector3::zeros(), 0.0)
         };
         let dq = jacobian_step(&self.model, &q, &dx, 0.01)?;
-        let now = q.iter().copied().chain(ef.iter().copied()).collect();
-        let goal_q = q.iter().zip(dq).map(|(a, b)| a + b);
-        let goal = goal_q.chain((ef + dx).iter().copied()).collect();
+        let now = self.layout.state(state);
+        let mut goal_q = q;
+        for (g, d) in goal_q.iter_mut().zip(dq) {
+            *g += d;
+        }
+        let goal = self.layout.moved(&self.model, &now, &goal_q, &(ef + dx))?;
         Ok((now, goal, scale))
     }
 }
@@ -410,15 +465,15 @@ pub fn hold(state: &SimState) -> Command {
     }
 }
 
-/// Runs one episode from the simulator's home pose: at most `max_steps` commands, ending
-/// early once within 5 mm.
+/// Runs one episode from the simulator's current state (a fresh simulator's, or one
+/// just reset with `reset_episode`, as the simulator node does between episodes): at
+/// most `max_steps` commands, ending early once within 5 mm.
 pub fn run_episode(
     sim: &mut Simulator,
     controller: &mut dyn Controller,
     target: &Vector3<f64>,
     max_steps: usize,
 ) -> Result<Episode, ControlError> {
-    sim.reset_episode();
     let mut state = sim.state();
     let mut episode = Episode::start(target, &state);
     while episode.steps < max_steps && !episode.reached() {
@@ -529,6 +584,10 @@ mod tests {
         Simulator::new(SimConfig::default()).unwrap()
     }
 
+    fn exp1() -> StateLayout {
+        StateLayout::of(Experiment::Exp1, &ArmModel::embedded())
+    }
+
     #[test]
     fn a_jacobian_step_moves_the_effector_by_the_asked_displacement() {
         let model = ArmModel::embedded();
@@ -569,12 +628,15 @@ mod tests {
         let mut sim = sim();
         let mut run = |controller: &mut dyn Controller| {
             let episodes: Vec<Episode> = (targets.iter())
-                .map(|t| run_episode(&mut sim, controller, t, 300).unwrap())
+                .map(|t| {
+                    sim.reset_episode();
+                    run_episode(&mut sim, controller, t, 300).unwrap()
+                })
                 .collect();
             summarize(controller.name(), &episodes)
         };
         let jacobian = run(&mut JacobianController::new(model.clone(), 0.02));
-        let im = run(&mut ImController::new(model.clone(), ExactIm, 0.02));
+        let im = run(&mut ImController::new(model.clone(), exp1(), ExactIm, 0.02));
         let random = run(&mut RandomController::new(&model, 0.35, 3).unwrap());
         assert!(jacobian.success_5mm >= 0.9, "{jacobian:?}");
         assert!(im.success_5mm >= 0.9, "{im:?}");
@@ -587,7 +649,7 @@ mod tests {
         let state = sim().state();
         let ef = state.ef_pose.translation.vector;
         let target = ef + Vector3::new(0.01, -0.005, 0.004);
-        let mut controller = ImController::new(model.clone(), ExactIm, 0.05);
+        let mut controller = ImController::new(model.clone(), exp1(), ExactIm, 0.05);
         let (_, goal, scale) = controller.query(&state, &target).unwrap();
         // The IM is asked about a full 5 cm step toward the target …
         let asked = Vector3::new(goal[7], goal[8], goal[9]) - ef;
@@ -617,7 +679,7 @@ mod tests {
         let model = ArmModel::embedded();
         let state = sim().state();
         let target = state.ef_pose.translation.vector + Vector3::new(0.2, 0.0, 0.0);
-        let mut controller = ImController::new(model, Still, 0.1);
+        let mut controller = ImController::new(model, exp1(), Still, 0.1);
         let moves: Vec<bool> = (0..2 * STALL_STEPS + 2)
             .map(|_| {
                 let command = controller.command(&state, &target).unwrap();
@@ -655,7 +717,7 @@ mod tests {
         let target = Vector3::new(0.3, 0.2, 0.8);
         let err = run_episode(
             &mut sim,
-            &mut ImController::new(model, Nan, 0.02),
+            &mut ImController::new(model, exp1(), Nan, 0.02),
             &target,
             5,
         )

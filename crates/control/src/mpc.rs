@@ -3,9 +3,10 @@
 //! out, and the first action of the best-scoring plan is executed; the next step plans
 //! again from the observed state (issue 17 item 2).
 //!
-//! Exp 1 layout: the state is (θ0..θ6, ef_x, ef_y, ef_z) and an action is the 7 joint
-//! deltas. A sequence's cost is the effector's predicted distance to the target summed
-//! over the horizon, so plans that get close early win.
+//! The state is the experiment's (exp 1: θ and ef; exp 2 also the cube, the effector's
+//! orientation and the magnet), an action its 7 joint deltas (exp 2: the magnet kept as it
+//! is). A sequence's cost is the effector's predicted distance to the target summed over
+//! the horizon, so plans that get close early win.
 
 use std::time::Instant;
 
@@ -14,10 +15,7 @@ use causal_arm_protocol::{ARM_DOF, Command, SimState};
 use rand::{SeedableRng, rngs::StdRng};
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::{ControlError, Controller, Vector3, joint_command};
-
-/// Width of the exp 1 state.
-const STATE_WIDTH: usize = ARM_DOF + 3;
+use crate::{ControlError, Controller, StateLayout, Vector3, joint_command};
 
 /// A learned forward model FM [s(t), a(t)] → s(t+1), asked for a batch of rows.
 pub trait ForwardModel {
@@ -99,6 +97,7 @@ pub struct MpcLog {
 /// Plans each step by CEM over the forward model and executes the first action.
 pub struct MpcController<F> {
     model: ArmModel,
+    layout: StateLayout,
     fm: F,
     settings: CemSettings,
     rng: StdRng,
@@ -112,9 +111,10 @@ pub struct MpcController<F> {
 }
 
 impl<F: ForwardModel> MpcController<F> {
-    /// An FM-MPC controller of `model`'s arm, seeded.
+    /// An FM-MPC controller of `model`'s arm, for states laid out as `layout`, seeded.
     pub fn new(
         model: ArmModel,
+        layout: StateLayout,
         fm: F,
         settings: CemSettings,
         seed: u64,
@@ -122,6 +122,7 @@ impl<F: ForwardModel> MpcController<F> {
         settings.check()?;
         Ok(Self {
             model,
+            layout,
             fm,
             settings,
             rng: StdRng::seed_from_u64(seed),
@@ -231,28 +232,30 @@ impl<F: ForwardModel> MpcController<F> {
         plans: &[Vec<f64>],
     ) -> Result<(Vec<f64>, Vec<Vector3<f64>>), ControlError> {
         let rows = plans.len();
-        let start: Vec<f64> = (state.joint_positions.iter().copied())
-            .chain(state.ef_pose.translation.vector.iter().copied())
-            .collect();
-        let mut states: Vec<f64> = start.repeat(rows);
+        let (width, action_width) = (self.layout.width, self.layout.action_width);
+        let mut states: Vec<f64> = self.layout.state(state).repeat(rows);
         let mut costs = vec![0.0; rows];
         let mut firsts = vec![Vector3::zeros(); rows];
         for h in 0..self.settings.horizon {
+            // The joint deltas, and (exp 2) the magnet kept as it is.
             let actions: Vec<f64> = (plans.iter())
-                .flat_map(|p| p[h * ARM_DOF..(h + 1) * ARM_DOF].iter().copied())
+                .flat_map(|p| {
+                    let deltas = p[h * ARM_DOF..(h + 1) * ARM_DOF].iter().copied();
+                    deltas.chain(std::iter::repeat_n(0.0, action_width - ARM_DOF))
+                })
                 .collect();
             states = self
                 .fm
                 .next_states(&states, &actions, rows)
                 .map_err(ControlError::Model)?;
-            if states.len() != rows * STATE_WIDTH || states.iter().any(|v| !v.is_finite()) {
+            if states.len() != rows * width || states.iter().any(|v| !v.is_finite()) {
                 return Err(ControlError::Model(format!(
-                    "expected {rows} finite next states of {STATE_WIDTH} features, got {} values",
+                    "expected {rows} finite next states of {width} features, got {} values",
                     states.len()
                 )));
             }
-            for (r, row) in states.chunks(STATE_WIDTH).enumerate() {
-                let ef = Vector3::new(row[ARM_DOF], row[ARM_DOF + 1], row[ARM_DOF + 2]);
+            for (r, row) in states.chunks(width).enumerate() {
+                let ef = self.layout.ef_position(row);
                 costs[r] += (ef - target).norm();
                 if h == 0 {
                     firsts[r] = ef;
@@ -301,6 +304,12 @@ mod tests {
     /// MPC must reach like the Jacobian controller does.
     struct ExactFm(ArmModel);
 
+    const STATE_WIDTH: usize = ARM_DOF + 3;
+
+    fn exp1() -> StateLayout {
+        StateLayout::of(causal_arm_protocol::Experiment::Exp1, &ArmModel::embedded())
+    }
+
     impl ForwardModel for ExactFm {
         fn next_states(&self, s: &[f64], a: &[f64], rows: usize) -> Result<Vec<f64>, String> {
             let mut out = Vec::with_capacity(rows * STATE_WIDTH);
@@ -321,9 +330,10 @@ mod tests {
         let model = ArmModel::embedded();
         let targets = crate::sample_targets(&model, 3, 0.35, 5).unwrap();
         let fm = ExactFm(model.clone());
-        let mut mpc = MpcController::new(model, fm, CemSettings::default(), 0).unwrap();
+        let mut mpc = MpcController::new(model, exp1(), fm, CemSettings::default(), 0).unwrap();
         let mut sim = Simulator::new(SimConfig::default()).unwrap();
         for target in &targets {
+            sim.reset_episode();
             let episode = crate::run_episode(&mut sim, &mut mpc, target, 100).unwrap();
             assert!(episode.within_1cm_at.is_some(), "{episode:?}");
         }
@@ -352,7 +362,7 @@ mod tests {
             ..CemSettings::default()
         };
         let mut mpc =
-            MpcController::new(model.clone(), ExactFm(model.clone()), settings, 1).unwrap();
+            MpcController::new(model.clone(), exp1(), ExactFm(model.clone()), settings, 1).unwrap();
         let state = Simulator::new(SimConfig::default()).unwrap().state();
         let mean = vec![5.0; 3 * ARM_DOF];
         let plan = mpc.sample_plan(&state, &mean, &[1.0; 3 * ARM_DOF]);

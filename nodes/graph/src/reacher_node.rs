@@ -15,8 +15,8 @@ use std::time::Duration;
 use anyhow::{Context as _, bail};
 use causal_arm_control::{
     CemSettings, Controller, Episode, ForwardModel, ImController, InverseModel, JacobianController,
-    MpcController, RandomController, Vector3, check_reachable, hold, next_state_indices,
-    sample_targets, summarize,
+    MpcController, RandomController, StateLayout, Vector3, check_reachable, experiment_targets,
+    hold, next_state_indices, summarize,
 };
 use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::srv::{
@@ -48,20 +48,17 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         ros_args,
     )?;
     let run = RunParams::from_params(node.params(), "")?;
-    if run.options.experiment != Experiment::Exp1 {
-        bail!(
-            "the reacher drives exp1 runs (effector targets); got experiment {}",
-            run.options.experiment
-        );
-    }
     let plan = run.options.plan;
     if plan.steps_per_episode < 2 {
         bail!("steps must be at least 2 (the home state and one action per episode)");
     }
     let model = ArmModel::embedded();
-    let targets = targets(node.params(), &model, plan.episodes as usize)?;
+    let experiment = run.options.experiment;
+    let targets = targets(node.params(), &model, experiment, plan.episodes as usize)?;
     let stop = stop_flag();
-    let mut controller = controller(&mut node, &model, run.options.exp1.sigma, &stop)?;
+    let layout = StateLayout::of(experiment, &model);
+    let sigma = run.options.exp1.sigma;
+    let mut controller = controller(&mut node, &model, layout, sigma, &stop)?;
     let mut episodes: Vec<Episode> = Vec::with_capacity(targets.len());
     answer_states(&mut node, &run, 0, &stop, |state, place| {
         let target = &targets[place.episode as usize];
@@ -109,11 +106,15 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
 fn targets(
     params: &Params,
     model: &ArmModel,
+    experiment: Experiment,
     episodes: usize,
 ) -> anyhow::Result<Vec<Vector3<f64>>> {
     let file = params.string("targets_file");
     let targets = match file {
-        "" => sample_targets(model, episodes, 0.35, params.integer("target_seed") as u64)?,
+        "" => {
+            let seed = params.integer("target_seed") as u64;
+            experiment_targets(experiment, model, episodes, seed)?
+        }
         file => read_targets(Path::new(file), model)?,
     };
     if targets.len() != episodes {
@@ -151,6 +152,7 @@ fn read_targets(file: &Path, model: &ArmModel) -> anyhow::Result<Vec<Vector3<f64
 fn controller(
     node: &mut RosNode,
     model: &ArmModel,
+    layout: StateLayout,
     sigma: f64,
     stop: &AtomicBool,
 ) -> anyhow::Result<Box<dyn Controller>> {
@@ -161,12 +163,18 @@ fn controller(
         "random" => Box::new(RandomController::new(model, sigma, seed)?),
         "im" => {
             let im = ServedIm::connect(node, stop)?;
-            Box::new(ImController::new(model.clone(), im, step))
+            Box::new(ImController::new(model.clone(), layout, im, step))
         }
         "fm-mpc" => {
             let settings = cem_settings(node.params())?;
             let fm = ServedFm::connect(node, stop)?;
-            Box::new(MpcController::new(model.clone(), fm, settings, seed)?)
+            Box::new(MpcController::new(
+                model.clone(),
+                layout,
+                fm,
+                settings,
+                seed,
+            )?)
         }
         other => bail!("controller {other:?} is not one of jacobian, im, fm-mpc, random"),
     })

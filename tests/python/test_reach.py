@@ -96,7 +96,7 @@ def test_fm_mpc_reports_its_planner_beside_the_episodes(run_cli, tmp_path):
     (["exp1", "--controller", "im", "--model-dir", TINY_MODEL, "--inverse-model", "fm"], "not an exp1 inverse model"),
     (["exp1", "--targets", "0"], "--targets must be a positive number, got 0"),
     (["exp1", "--step", "-0.1"], "--step must be a positive number of metres"),
-    (["exp2", "--controller", "im", "--model-dir", TINY_MODEL], "holds exp1 models; this reach drives exp2"),
+    (["exp2", "--controller", "im", "--model-dir", TINY_MODEL], "holds exp1 models; this task drives exp2"),
     (["exp1", "--target", "3", "0", "1"], "--target 3 0 1: out of the arm's reach: target (3.0000, 0.0000, 1.0000) m is unreachable"),
     (["exp1", "--target", "0.4", "0.2"], "3 values required"),
     (["exp1", "--max-steps", "0"], "--max-steps must be a positive number, got 0"),
@@ -151,3 +151,29 @@ def test_exp2_reaching_runs_over_dds_exactly_as_in_process(run_cli, tmp_path, ex
         assert abs(x - 0.58) <= 0.2 and abs(y) <= 0.3 and 0.25 <= z <= 0.5, e
     if controller == "jacobian":
         assert runs["dds"]["summary"]["success_5mm"] == 1.0, runs["dds"]["summary"]
+
+
+def test_fm_mpc_places_the_cube_and_reports_every_trial(run_cli, tmp_path, exp2_models):
+    """`place`: pick the cube with the magnet, carry it over a spot, release it; every trial
+    is reported with where the cube came to rest."""
+    r = run_cli("place", "--trials", "3", "--seed", "1", "--model-dir", exp2_models, "--max-steps", "60",
+                "--samples", "16", "--iterations", "2", "--out", tmp_path / "place", timeout=300)
+    assert r.returncode == 0, r.stderr
+    report = json.loads((tmp_path / "place" / "report.json").read_text())
+    assert report["summary"]["trials"] == 3 and len(report["trials"]) == 3
+    for t in report["trials"]:
+        assert t["steps"] <= 60 and t["final_distance"] >= 0 and 0.1 < t["spot"][0] < 1.0, t
+        assert t["released_at"] is None or t["held_at"] is not None, t
+    assert report["planner"]["cem"]["samples"] == 16
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--trials", "0"], "--trials and --max-steps must be positive numbers, got 0 and 400"),
+    (["--model-dir", TINY_MODEL], "holds exp1 models; this task drives exp2"),
+    (["--model-dir", "NOPE"], "NOPE"),
+])
+def test_bad_place_options_are_refused(run_cli, tmp_path, args, message):
+    base = {"--model-dir": str(tmp_path)}
+    base.update(dict(zip(args[::2], args[1::2])))
+    r = run_cli("place", *[x for kv in base.items() for x in kv], "--out", tmp_path / "out")
+    assert r.returncode != 0 and message in r.stderr, r.stderr

@@ -8,6 +8,7 @@ mod intervene_cmd;
 mod kinematics_cmd;
 mod launch_cmd;
 mod launch_shards;
+mod place_cmd;
 mod play_cmd;
 mod progress;
 mod reach_cmd;
@@ -60,6 +61,8 @@ enum Command {
     /// Drive the arm to target effector positions with the Jacobian, a learned inverse
     /// model or babbling, and report success within 1 cm and 5 mm.
     Reach(reach_cmd::ReachArgs),
+    /// Move the cube to spots on the table with FM-MPC (exp 2: pick, carry, release).
+    Place(place_cmd::PlaceArgs),
     /// SHAP attributions of a forward model: heat map, PDPs and relevance report.
     Explain(explain_cmd::ExplainArgs),
     /// Causal ground truth: intervene on every action in states of a bag, record what changes.
@@ -112,6 +115,7 @@ fn main() -> std::process::ExitCode {
         Command::Train(args) => train_cmd::run(args),
         Command::Rollout(args) => rollout_cmd::run(args),
         Command::Reach(args) => reach_cmd::run(args, &ros_args),
+        Command::Place(args) => place_cmd::run(args),
         Command::Explain(args) => explain_cmd::run(args),
         Command::Intervene(args) => intervene_cmd::run(args),
         Command::Service(args) => service_cmd::run(args, &ros_args),

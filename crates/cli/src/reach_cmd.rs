@@ -10,7 +10,7 @@ use anyhow::{Context as _, bail};
 use causal_arm_control::{
     CemSettings, Controller, Episode, ImController, JacobianController, MpcController,
     RandomController, StateLayout, Summary, Vector3, check_reachable, experiment_targets,
-    run_episode, summarize,
+    run_fixed_episode, summarize,
 };
 use causal_arm_datagen::GenerateOptions;
 use causal_arm_kinematics::ArmModel;
@@ -111,7 +111,7 @@ pub struct ReachArgs {
 /// The cross-entropy method of `--controller fm-mpc` (defaults: `CemSettings::default()`,
 /// which the reacher node's parameters in graph.toml repeat; a test keeps them equal).
 #[derive(Debug, Args)]
-struct CemArgs {
+pub(crate) struct CemArgs {
     /// fm-mpc: steps each sampled action sequence looks ahead.
     #[arg(long, default_value_t = CemSettings::default().horizon)]
     horizon: usize,
@@ -133,7 +133,7 @@ struct CemArgs {
 }
 
 impl CemArgs {
-    fn settings(&self) -> CemSettings {
+    pub(crate) fn settings(&self) -> CemSettings {
         CemSettings {
             horizon: self.horizon,
             samples: self.samples,
@@ -226,7 +226,7 @@ fn in_process(
         if i > 0 {
             sim.reset_episode();
         }
-        episodes.push(run_episode(&mut sim, controller, goal, max_steps)?);
+        episodes.push(run_fixed_episode(&mut sim, controller, goal, max_steps)?);
         counter.set(i as u64 + 1);
     }
     counter.finish();

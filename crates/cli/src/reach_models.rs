@@ -104,7 +104,7 @@ fn load_for(dir: &Path, name: &str, experiment: Experiment) -> anyhow::Result<Mo
         .with_context(|| format!("loading the models in {}", dir.display()))?;
     if models.experiment() != experiment {
         bail!(
-            "{} holds {} models; this reach drives {experiment}",
+            "{} holds {} models; this task drives {experiment}",
             dir.display(),
             models.experiment()
         );

@@ -24,6 +24,8 @@ pub struct StateLayout {
     pub ef: usize,
     /// Whether s carries the effector's orientation after its position (exp 2).
     pub ef_orientation: bool,
+    /// Index of the cube's x in s, if s carries the cube (exp 2: o_x, o_y, o_z).
+    pub object: Option<usize>,
     /// Features in a (the 7 joint deltas first; exp 2 then the magnet command).
     pub action_width: usize,
     joint_names: Vec<String>,
@@ -48,6 +50,7 @@ impl StateLayout {
             theta: start(&["theta"]).0,
             ef,
             ef_orientation,
+            object: (groups.iter().find(|g| g.name == "obj_pos")).map(|g| g.start),
             action_width: action_names(experiment).len(),
             joint_names: model.joint_names().iter().map(|n| n.to_string()).collect(),
         }
@@ -62,6 +65,11 @@ impl StateLayout {
     /// The effector position in a state vector.
     pub fn ef_position(&self, s: &[f64]) -> Vector3<f64> {
         Vector3::new(s[self.ef], s[self.ef + 1], s[self.ef + 2])
+    }
+
+    /// The cube's position in a state vector, if it carries one.
+    pub fn object_position(&self, s: &[f64]) -> Option<Vector3<f64>> {
+        self.object.map(|o| Vector3::new(s[o], s[o + 1], s[o + 2]))
     }
 
     /// `now` with the arm moved: θ replaced by `q`, the effector position by `ef`, and

@@ -16,9 +16,13 @@
 
 pub mod layout;
 pub mod mpc;
+pub mod place;
 
 pub use layout::StateLayout;
-pub use mpc::{CemSettings, ForwardModel, MpcController, MpcLog};
+pub use mpc::{CemSettings, ForwardModel, Goal, MpcController, MpcLog};
+pub use place::{
+    PlaceController, PlaceSummary, PlaceTrial, run_place_trial, sample_spots, summarize_place,
+};
 
 use causal_arm_kinematics::{ArmModel, IkOptions, IkTarget};
 use causal_arm_protocol::{ARM_DOF, Command, Experiment, Scene, SimState};
@@ -486,6 +490,25 @@ pub fn run_episode(
     Ok(episode)
 }
 
+/// Runs one episode as the simulator node runs it for the reacher: `run_episode`, then
+/// the arm held still until the episode's `max_steps + 1` actions are done (the last
+/// state's action included), so the world (the cube, its contacts) goes on exactly as
+/// over DDS and the next episode starts from the same simulator.
+pub fn run_fixed_episode(
+    sim: &mut Simulator,
+    controller: &mut dyn Controller,
+    target: &Vector3<f64>,
+    max_steps: usize,
+) -> Result<Episode, ControlError> {
+    let episode = run_episode(sim, controller, target, max_steps)?;
+    for _ in episode.steps..=max_steps {
+        let state = sim.state();
+        sim.step(&hold(&state))
+            .map_err(|e| ControlError::Sim(e.to_string()))?;
+    }
+    Ok(episode)
+}
+
 /// Success rates and error quantiles of a controller's episodes.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Summary {
@@ -503,25 +526,29 @@ pub struct Summary {
     pub final_error_p10_p50_p90: [f64; 3],
 }
 
+/// The 10 %, 50 % and 90 % quantiles of `values` (nearest rank; NaN when empty).
+pub(crate) fn p10_p50_p90(values: impl Iterator<Item = f64>) -> [f64; 3] {
+    let mut sorted: Vec<f64> = values.collect();
+    sorted.sort_by(f64::total_cmp);
+    [0.1, 0.5, 0.9].map(|p| match sorted.len() {
+        0 => f64::NAN,
+        len => sorted[((len - 1) as f64 * p).round() as usize],
+    })
+}
+
 /// Summarises `episodes` of `controller`.
 pub fn summarize(controller: &str, episodes: &[Episode]) -> Summary {
     let n = episodes.len().max(1) as f64;
     let share = |f: fn(&Episode) -> bool| episodes.iter().filter(|e| f(e)).count() as f64 / n;
     let mut steps: Vec<usize> = episodes.iter().filter_map(|e| e.within_1cm_at).collect();
     steps.sort_unstable();
-    let mut errors: Vec<f64> = episodes.iter().map(|e| e.final_error).collect();
-    errors.sort_by(f64::total_cmp);
-    let quantile = |p: f64| match errors.len() {
-        0 => f64::NAN,
-        len => errors[((len - 1) as f64 * p).round() as usize],
-    };
     Summary {
         controller: controller.to_owned(),
         episodes: episodes.len(),
         success_1cm: share(|e| e.within_1cm_at.is_some()),
         success_5mm: share(|e| e.within_5mm_at.is_some()),
         median_steps_to_1cm: steps.get(steps.len() / 2).copied(),
-        final_error_p10_p50_p90: [quantile(0.1), quantile(0.5), quantile(0.9)],
+        final_error_p10_p50_p90: p10_p50_p90(episodes.iter().map(|e| e.final_error)),
     }
 }
 

@@ -17,6 +17,29 @@ use rand_distr::{Distribution, StandardNormal};
 
 use crate::{ControlError, Controller, StateLayout, Vector3, joint_command};
 
+/// What a plan is scored on: where the effector, or the cube, is predicted to be.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Goal {
+    /// The effector at this position (reaching).
+    Effector(Vector3<f64>),
+    /// The effector at this position, the tool pointing straight down (picking; exp 2).
+    EffectorDown(Vector3<f64>),
+    /// The cube at this position, the tool pointing down (carrying it; exp 2).
+    Cube(Vector3<f64>),
+}
+
+impl Goal {
+    fn point(&self) -> Vector3<f64> {
+        match self {
+            Self::Effector(p) | Self::EffectorDown(p) | Self::Cube(p) => *p,
+        }
+    }
+}
+
+/// Cost of a tilted tool, m per unit of (1 + cos(pitch) cos(roll)), which is 0 pointing
+/// straight down and 2 pointing up: 10° of tilt costs as much as 7.6 mm of distance.
+const TILT_COST: f64 = 0.5;
+
 /// A learned forward model FM [s(t), a(t)] → s(t+1), asked for a batch of rows.
 pub trait ForwardModel {
     /// `rows` next states for `rows` (state, action) pairs, row-major.
@@ -89,8 +112,9 @@ pub struct MpcLog {
     pub decisions: usize,
     /// Wall time of all decisions, s.
     pub decision_seconds: f64,
-    /// Per target: mean distance between the effector the FM predicted after the
-    /// executed action and the one observed, m (NaN before the first observation).
+    /// Per target (per goal when placing): mean distance between the effector (or cube)
+    /// position the FM predicted after the executed action and the one observed, m
+    /// (NaN before the first observation).
     pub prediction_error_per_target: Vec<f64>,
 }
 
@@ -103,9 +127,9 @@ pub struct MpcController<F> {
     rng: StdRng,
     /// The last plan, shifted by one step: the next decision's starting mean.
     warm: Vec<f64>,
-    /// The effector the FM predicted after the last executed action.
+    /// The position the FM predicted after the last executed action.
     predicted: Option<Vector3<f64>>,
-    target: Option<Vector3<f64>>,
+    goal: Option<Goal>,
     errors: (f64, usize),
     log: MpcLog,
 }
@@ -128,7 +152,7 @@ impl<F: ForwardModel> MpcController<F> {
             rng: StdRng::seed_from_u64(seed),
             warm: vec![0.0; settings.horizon * ARM_DOF],
             predicted: None,
-            target: None,
+            goal: None,
             errors: (0.0, 0),
             log: MpcLog::default(),
         })
@@ -137,7 +161,7 @@ impl<F: ForwardModel> MpcController<F> {
     /// The planner's log so far.
     pub fn log(&self) -> MpcLog {
         let mut log = self.log.clone();
-        if self.target.is_some() {
+        if self.goal.is_some() {
             log.prediction_error_per_target.push(self.mean_error());
         }
         log
@@ -150,28 +174,32 @@ impl<F: ForwardModel> MpcController<F> {
         }
     }
 
-    /// Starts the bookkeeping of a new target, or scores the last prediction.
-    fn observe(&mut self, state: &SimState, target: &Vector3<f64>) {
-        if self.target != Some(*target) {
-            if self.target.is_some() {
+    /// Starts the bookkeeping of a new goal, or scores the last prediction.
+    fn observe(&mut self, state: &SimState, goal: &Goal) {
+        if self.goal != Some(*goal) {
+            if self.goal.is_some() {
                 let error = self.mean_error();
                 self.log.prediction_error_per_target.push(error);
             }
-            (self.target, self.predicted, self.errors) = (Some(*target), None, (0.0, 0));
+            (self.goal, self.predicted, self.errors) = (Some(*goal), None, (0.0, 0));
             self.warm.fill(0.0);
         } else if let Some(predicted) = self.predicted {
-            let observed = state.ef_pose.translation.vector;
+            let observed = match goal {
+                Goal::Effector(_) | Goal::EffectorDown(_) => state.ef_pose.translation.vector,
+                Goal::Cube(_) => state.cube_pose.translation.vector,
+            };
             self.errors.0 += (observed - predicted).norm();
             self.errors.1 += 1;
         }
     }
 
-    /// The best plan CEM finds from `state` (horizon × joint deltas) and the effector
-    /// position its first step is predicted to reach.
+    /// The best plan CEM finds from `state` (horizon × joint deltas) and the position
+    /// (of the effector or cube) its first step is predicted to reach.
     fn plan(
         &mut self,
         state: &SimState,
-        target: &Vector3<f64>,
+        goal: &Goal,
+        magnet: i8,
     ) -> Result<(Vec<f64>, Vector3<f64>), ControlError> {
         let s = self.settings;
         let width = s.horizon * ARM_DOF;
@@ -182,7 +210,7 @@ impl<F: ForwardModel> MpcController<F> {
             let plans: Vec<Vec<f64>> = (0..s.samples)
                 .map(|_| self.sample_plan(state, &mean, &std))
                 .collect();
-            let (costs, firsts) = self.score(state, target, &plans)?;
+            let (costs, firsts) = self.score(state, goal, magnet, &plans)?;
             let mut order: Vec<usize> = (0..plans.len()).collect();
             order.sort_by(|&a, &b| costs[a].total_cmp(&costs[b]));
             if best.as_ref().is_none_or(|b| costs[order[0]] < b.0) {
@@ -228,20 +256,30 @@ impl<F: ForwardModel> MpcController<F> {
     fn score(
         &self,
         state: &SimState,
-        target: &Vector3<f64>,
+        goal: &Goal,
+        magnet: i8,
         plans: &[Vec<f64>],
     ) -> Result<(Vec<f64>, Vec<Vector3<f64>>), ControlError> {
+        let (target, on_cube) = (goal.point(), matches!(goal, Goal::Cube(_)));
+        let down = !matches!(goal, Goal::Effector(_));
+        if (on_cube && self.layout.object.is_none()) || (down && !self.layout.ef_orientation) {
+            return Err(ControlError::Options(format!(
+                "the {} state carries no cube to place or tool orientation to keep",
+                self.layout.experiment
+            )));
+        }
         let rows = plans.len();
         let (width, action_width) = (self.layout.width, self.layout.action_width);
         let mut states: Vec<f64> = self.layout.state(state).repeat(rows);
         let mut costs = vec![0.0; rows];
         let mut firsts = vec![Vector3::zeros(); rows];
         for h in 0..self.settings.horizon {
-            // The joint deltas, and (exp 2) the magnet kept as it is.
+            // The joint deltas, and (exp 2) the magnet command, then kept as it is.
+            let magnet = if h == 0 { f64::from(magnet) } else { 0.0 };
             let actions: Vec<f64> = (plans.iter())
                 .flat_map(|p| {
                     let deltas = p[h * ARM_DOF..(h + 1) * ARM_DOF].iter().copied();
-                    deltas.chain(std::iter::repeat_n(0.0, action_width - ARM_DOF))
+                    deltas.chain(std::iter::repeat_n(magnet, action_width - ARM_DOF))
                 })
                 .collect();
             states = self
@@ -255,14 +293,47 @@ impl<F: ForwardModel> MpcController<F> {
                 )));
             }
             for (r, row) in states.chunks(width).enumerate() {
-                let ef = self.layout.ef_position(row);
-                costs[r] += (ef - target).norm();
+                let point = match on_cube {
+                    true => self.layout.object_position(row).expect("checked above"),
+                    false => self.layout.ef_position(row),
+                };
+                costs[r] += (point - target).norm();
+                if down {
+                    let (roll, pitch) = (row[self.layout.ef + 3], row[self.layout.ef + 4]);
+                    costs[r] += TILT_COST * (1.0 + pitch.cos() * roll.cos());
+                }
                 if h == 0 {
-                    firsts[r] = ef;
+                    firsts[r] = point;
                 }
             }
         }
         Ok((costs, firsts))
+    }
+}
+
+impl<F: ForwardModel> MpcController<F> {
+    /// The command of the plan CEM finds toward `goal`, with magnet command `magnet`
+    /// (−1 off, 0 keep, +1 on) sent with its first step.
+    pub fn step_toward(
+        &mut self,
+        state: &SimState,
+        goal: Goal,
+        magnet: i8,
+    ) -> Result<Command, ControlError> {
+        self.observe(state, &goal);
+        let started = Instant::now();
+        let (plan, first) = self.plan(state, &goal, magnet)?;
+        self.log.decisions += 1;
+        self.log.decision_seconds += started.elapsed().as_secs_f64();
+        self.predicted = Some(first);
+        // Warm start: the rest of this plan, then standing still.
+        self.warm = plan[ARM_DOF..].to_vec();
+        self.warm.extend([0.0; ARM_DOF]);
+        let mut dq = [0.0; ARM_DOF];
+        dq.copy_from_slice(&plan[..ARM_DOF]);
+        let mut command = joint_command(&self.model, &state.joint_positions, &dq);
+        command.magnet = magnet;
+        Ok(command)
     }
 }
 
@@ -276,18 +347,7 @@ impl<F: ForwardModel> Controller for MpcController<F> {
         state: &SimState,
         target: &Vector3<f64>,
     ) -> Result<Command, ControlError> {
-        self.observe(state, target);
-        let started = Instant::now();
-        let (plan, first) = self.plan(state, target)?;
-        self.log.decisions += 1;
-        self.log.decision_seconds += started.elapsed().as_secs_f64();
-        self.predicted = Some(first);
-        // Warm start: the rest of this plan, then standing still.
-        self.warm = plan[ARM_DOF..].to_vec();
-        self.warm.extend([0.0; ARM_DOF]);
-        let mut dq = [0.0; ARM_DOF];
-        dq.copy_from_slice(&plan[..ARM_DOF]);
-        Ok(joint_command(&self.model, &state.joint_positions, &dq))
+        self.step_toward(state, Goal::Effector(*target), 0)
     }
 
     fn report(&self) -> serde_json::Value {

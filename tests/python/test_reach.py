@@ -153,18 +153,27 @@ def test_exp2_reaching_runs_over_dds_exactly_as_in_process(run_cli, tmp_path, ex
         assert runs["dds"]["summary"]["success_5mm"] == 1.0, runs["dds"]["summary"]
 
 
-def test_fm_mpc_places_the_cube_and_reports_every_trial(run_cli, tmp_path, exp2_models):
-    """`place`: pick the cube with the magnet, carry it over a spot, release it; every trial
-    is reported with where the cube came to rest."""
-    r = run_cli("place", "--trials", "3", "--seed", "1", "--model-dir", exp2_models, "--max-steps", "60",
-                "--samples", "16", "--iterations", "2", "--out", tmp_path / "place", timeout=300)
-    assert r.returncode == 0, r.stderr
-    report = json.loads((tmp_path / "place" / "report.json").read_text())
-    assert report["summary"]["trials"] == 3 and len(report["trials"]) == 3
-    for t in report["trials"]:
+def test_fm_mpc_places_the_cube_over_dds_exactly_as_in_process(run_cli, tmp_path, exp2_models):
+    """`place`: pick the cube with the magnet, carry it over a spot, release it; the reacher
+    node (task:=place, asking the trainer node's FM) and the library loop agree trial for
+    trial, and every trial is reported with where the cube came to rest."""
+    reports = {}
+    for where, extra in (("dds", []), ("local", ["--in-process"])):
+        r = run_cli("place", "--trials", "3", "--seed", "1", "--model-dir", exp2_models, "--max-steps", "60",
+                    "--samples", "16", "--iterations", "2", *extra, "--out", tmp_path / where, timeout=300)
+        assert r.returncode == 0, r.stderr
+        reports[where] = json.loads((tmp_path / where / "report.json").read_text())
+    dds, local = reports["dds"], reports["local"]
+    assert dds["over"] == "dds" and local["over"] == "process"
+    assert dds["trials"] == local["trials"] and dds["summary"] == local["summary"]
+    assert dds["summary"]["trials"] == 3 and len(dds["trials"]) == 3
+    for t in dds["trials"]:
         assert t["steps"] <= 60 and t["final_distance"] >= 0 and 0.1 < t["spot"][0] < 1.0, t
         assert t["released_at"] is None or t["held_at"] is not None, t
-    assert report["planner"]["cem"]["samples"] == 16
+    assert dds["planner"]["cem"]["samples"] == 16
+    with AnyReader([tmp_path / "dds" / "bag"]) as bag:
+        actions = [c for c in bag.connections if c.topic == "/babbler/action"]
+        assert sum(c.msgcount for c in actions) == 3 * 61
 
 
 @pytest.mark.parametrize("args,message", [

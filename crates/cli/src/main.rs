@@ -115,7 +115,7 @@ fn main() -> std::process::ExitCode {
         Command::Train(args) => train_cmd::run(args),
         Command::Rollout(args) => rollout_cmd::run(args),
         Command::Reach(args) => reach_cmd::run(args, &ros_args),
-        Command::Place(args) => place_cmd::run(args),
+        Command::Place(args) => place_cmd::run(args, &ros_args),
         Command::Explain(args) => explain_cmd::run(args),
         Command::Intervene(args) => intervene_cmd::run(args),
         Command::Service(args) => service_cmd::run(args, &ros_args),

@@ -1,20 +1,24 @@
 //! `causal-arm place`: FM-MPC moves the cube to spots on the table (exp 2), picking it
 //! with the magnet, carrying it and releasing it over the spot; reports how often the
-//! cube comes to rest within 3 cm and 1 cm. In process.
+//! cube comes to rest within 3 cm and 1 cm. Over DDS (the reacher node with
+//! `task:=place`, a trainer node serving the FM) or, with `--in-process`, in process;
+//! both run each trial to `max_steps + 1` actions and agree trial for trial.
 
 use std::path::PathBuf;
 
 use anyhow::{Context as _, bail};
 use causal_arm_control::{
-    MpcController, PlaceController, PlaceTrial, StateLayout, run_place_trial, sample_spots,
-    summarize_place,
+    MpcController, PlaceController, PlaceSummary, PlaceTrial, StateLayout, Vector3,
+    run_place_trial, sample_spots, summarize_place,
 };
+use causal_arm_datagen::GenerateOptions;
 use causal_arm_kinematics::ArmModel;
-use causal_arm_protocol::{Experiment, RunPlan};
+use causal_arm_node::RosArgs;
+use causal_arm_protocol::Experiment;
 use clap::Args;
 
 use crate::progress::Counter;
-use crate::reach_cmd::CemArgs;
+use crate::reach_cmd::{CemArgs, ReacherRun, run_options, run_reacher_graph};
 use crate::reach_models::TrainedFm;
 
 /// `causal-arm place` options.
@@ -38,48 +42,55 @@ pub struct PlaceArgs {
     /// Steps per trial before giving up.
     #[arg(long, default_value_t = 400, allow_negative_numbers = true)]
     max_steps: i64,
-    /// Directory for report.json.
+    /// Run in this process with the simulator library, instead of over DDS.
+    #[arg(long)]
+    in_process: bool,
+    /// Directory for report.json (and, over DDS, the run's bag in OUT/bag and the spots
+    /// in OUT/targets.json).
     #[arg(long)]
     out: PathBuf,
+    /// Replace a bag already in OUT/bag.
+    #[arg(long)]
+    overwrite: bool,
 }
 
 /// Runs `causal-arm place`.
-pub fn run(args: &PlaceArgs) -> anyhow::Result<()> {
+pub fn run(args: &PlaceArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     let (trials, max_steps) = match (args.trials, args.max_steps) {
         (t, m) if t > 0 && m > 0 => (t as usize, m as usize),
         (t, m) => bail!("--trials and --max-steps must be positive numbers, got {t} and {m}"),
     };
-    let model = ArmModel::embedded();
+    // Refuse a directory without an exp 2 FM before anything starts.
     let fm = TrainedFm::load(&args.model_dir, &args.forward_model, Experiment::Exp2)?;
-    let layout = StateLayout::of(Experiment::Exp2, &model);
-    let mpc = MpcController::new(model, layout, fm, args.cem.settings(), args.seed)?;
-    let plan = RunPlan {
-        episodes: trials as u64,
-        steps_per_episode: max_steps as u64,
-    };
-    let options = causal_arm_datagen::GenerateOptions::new(Experiment::Exp2, plan, args.seed, "");
-    let mut sim = causal_arm_datagen::simulator(&options)?;
-    let scene = sim.config().scene();
-    let spots = sample_spots(&scene, sim.config().spawn_margin, trials, args.seed);
-    let mut controller = PlaceController::new(mpc, scene);
-    let mut counter = Counter::new(trials as u64, "place with fm-mpc", "trials");
-    let mut done: Vec<PlaceTrial> = Vec::with_capacity(trials);
-    for (i, spot) in spots.iter().enumerate() {
-        if i > 0 {
-            sim.reset_episode();
-        }
-        done.push(run_place_trial(&mut sim, &mut controller, spot, max_steps)?);
-        counter.set(i as u64 + 1);
-    }
-    counter.finish();
-    let summary = summarize_place(&done);
+    let options = run_options(Experiment::Exp2, args.seed, &args.out, trials, max_steps);
+    let spots = sample_spots(
+        &options.sim.scene(),
+        options.sim.spawn_margin,
+        trials,
+        args.seed,
+    );
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let file = args.out.join("report.json");
-    let report = serde_json::json!({"summary": summary, "trials": done, "seed": args.seed,
-        "max_steps": max_steps, "planner": controller.report()});
+    let report = match args.in_process {
+        true => in_process(args, fm, &options, &spots, max_steps)?,
+        false => {
+            let mut reacher = vec!["task:=place".to_owned()];
+            reacher.extend(args.cem.ros_params());
+            let run = ReacherRun {
+                options,
+                overwrite: args.overwrite,
+                points: &spots,
+                reacher,
+                trainer: Some((&args.model_dir, &args.forward_model, &args.forward_model)),
+                report: &file,
+            };
+            run_reacher_graph(&run, ros_args)?
+        }
+    };
     std::fs::write(&file, serde_json::to_string_pretty(&report)?)
         .with_context(|| format!("writing {}", file.display()))?;
+    let summary: PlaceSummary = serde_json::from_value(report["summary"].clone())?;
     println!(
         "fm-mpc place: {} trials, within 3 cm {:.0} %, within 1 cm {:.0} %, held {:.0} %, final distance p50 {:.4} m ({})",
         summary.trials,
@@ -90,4 +101,34 @@ pub fn run(args: &PlaceArgs) -> anyhow::Result<()> {
         file.display()
     );
     Ok(())
+}
+
+/// Every trial in this process, with the simulator the simulator node would run.
+fn in_process(
+    args: &PlaceArgs,
+    fm: TrainedFm,
+    options: &GenerateOptions,
+    spots: &[Vector3<f64>],
+    max_steps: usize,
+) -> anyhow::Result<serde_json::Value> {
+    let model = ArmModel::embedded();
+    let layout = StateLayout::of(Experiment::Exp2, &model);
+    let mpc = MpcController::new(model, layout, fm, args.cem.settings(), args.seed)?;
+    let mut sim = causal_arm_datagen::simulator(options)?;
+    let mut controller = PlaceController::new(mpc, sim.config().scene());
+    let mut counter = Counter::new(spots.len() as u64, "place with fm-mpc", "trials");
+    let mut trials: Vec<PlaceTrial> = Vec::with_capacity(spots.len());
+    for (i, spot) in spots.iter().enumerate() {
+        if i > 0 {
+            sim.reset_episode();
+        }
+        trials.push(run_place_trial(&mut sim, &mut controller, spot, max_steps)?);
+        counter.set(i as u64 + 1);
+    }
+    counter.finish();
+    Ok(
+        serde_json::json!({"summary": summarize_place(&trials), "trials": trials,
+        "seed": args.seed, "max_steps": max_steps, "over": "process",
+        "planner": controller.report()}),
+    )
 }

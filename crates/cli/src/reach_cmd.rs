@@ -145,7 +145,7 @@ impl CemArgs {
     }
 
     /// The same settings as the reacher node's parameters.
-    fn ros_params(&self) -> [String; 6] {
+    pub(crate) fn ros_params(&self) -> [String; 6] {
         [
             format!("horizon:={}", self.horizon),
             format!("samples:={}", self.samples),
@@ -215,7 +215,13 @@ fn in_process(
     file: &Path,
 ) -> anyhow::Result<Summary> {
     // The simulator the simulator node would run for the same run.
-    let mut sim = causal_arm_datagen::simulator(&run_options(args, goals.len(), max_steps))?;
+    let mut sim = causal_arm_datagen::simulator(&run_options(
+        args.experiment,
+        args.seed,
+        &args.out,
+        goals.len(),
+        max_steps,
+    ))?;
     let mut counter = Counter::new(
         goals.len() as u64,
         &format!("reach with {}", controller.name()),
@@ -241,18 +247,23 @@ fn in_process(
 
 /// The run the simulator node makes of `episodes` targets: an episode of `max_steps + 1`
 /// states per target, recorded into OUT/bag.
-fn run_options(args: &ReachArgs, episodes: usize, max_steps: usize) -> GenerateOptions {
+pub(crate) fn run_options(
+    experiment: Experiment,
+    seed: u64,
+    out: &Path,
+    episodes: usize,
+    max_steps: usize,
+) -> GenerateOptions {
     let plan = RunPlan {
         episodes: episodes as u64,
         steps_per_episode: max_steps as u64 + 1,
     };
-    GenerateOptions::new(args.experiment, plan, args.seed, args.out.join("bag"))
+    GenerateOptions::new(experiment, plan, seed, out.join("bag"))
 }
 
 /// Reaches every goal over DDS: the simulator, recorder and reacher nodes (and, for the
-/// IM, a trainer node serving --model-dir) as separate processes, one episode per goal
-/// of `max_steps + 1` states (the reacher holds the arm once within 5 mm). The recorder
-/// writes the run into OUT/bag; the reacher writes `file`.
+/// IM or FM, a trainer node serving --model-dir) as separate processes, one episode per
+/// goal of `max_steps + 1` states (the reacher holds the arm once within 5 mm).
 fn over_dds(
     args: &ReachArgs,
     ros_args: &RosArgs,
@@ -260,8 +271,61 @@ fn over_dds(
     max_steps: usize,
     file: &Path,
 ) -> anyhow::Result<Summary> {
-    let mut options = run_options(args, goals.len(), max_steps);
-    options.overwrite = args.overwrite;
+    let mut reacher = vec![
+        "task:=reach".to_owned(),
+        format!("controller:={}", args.controller.name()),
+        format!("step:={:?}", args.step),
+    ];
+    reacher.extend(args.cem.ros_params());
+    // IM reaching asks no FM: the IM serves both services.
+    let trainer = match args.controller {
+        ControllerKind::Im => Some((model_dir(args)?, &args.inverse_model, &args.inverse_model)),
+        ControllerKind::FmMpc => Some((model_dir(args)?, &args.forward_model, &args.inverse_model)),
+        _ => None,
+    };
+    let run = ReacherRun {
+        options: run_options(
+            args.experiment,
+            args.seed,
+            &args.out,
+            goals.len(),
+            max_steps,
+        ),
+        overwrite: args.overwrite,
+        points: goals,
+        reacher,
+        trainer,
+        report: file,
+    };
+    let report = run_reacher_graph(&run, ros_args)?;
+    Ok(serde_json::from_value(report["summary"].clone())?)
+}
+
+/// One run of the reacher graph (`reach` and `place` over DDS).
+pub(crate) struct ReacherRun<'a> {
+    /// The simulator's run: one episode per point, recorded into its `out`.
+    pub options: GenerateOptions,
+    /// Replace a bag already there.
+    pub overwrite: bool,
+    /// One target (or spot) per episode, handed to the reacher in a targets file beside
+    /// the report.
+    pub points: &'a [Vector3<f64>],
+    /// The reacher's own parameters (`name:=value`).
+    pub reacher: Vec<String>,
+    /// A trainer node to start first: model directory, forward and inverse model names.
+    pub trainer: Option<(&'a Path, &'a String, &'a String)>,
+    /// Where the reacher writes its report.
+    pub report: &'a Path,
+}
+
+/// Runs the recorder, simulator and reacher nodes (and the trainer) over DDS and returns
+/// the reacher's report.
+pub(crate) fn run_reacher_graph(
+    run: &ReacherRun,
+    ros_args: &RosArgs,
+) -> anyhow::Result<serde_json::Value> {
+    let mut options = run.options.clone();
+    options.overwrite = run.overwrite;
     causal_arm_datagen::validate(&options)?;
     if !options.overwrite
         && let Some(found) = causal_arm_bag::existing_bag(&options.out)
@@ -271,36 +335,32 @@ fn over_dds(
             options.out.display()
         );
     }
-    let targets_file = args.out.join("targets.json");
-    let points: Vec<[f64; 3]> = goals.iter().map(|g| [g.x, g.y, g.z]).collect();
+    let file = run.report;
+    let targets_file = file.with_file_name("targets.json");
+    let points: Vec<[f64; 3]> = run.points.iter().map(|g| [g.x, g.y, g.z]).collect();
     std::fs::write(&targets_file, serde_json::to_string(&points)?)
         .with_context(|| format!("writing {}", targets_file.display()))?;
     if file.exists() {
         std::fs::remove_file(file).with_context(|| format!("replacing {}", file.display()))?;
     }
-    let mut reacher = vec![
-        format!("controller:={}", args.controller.name()),
-        format!("step:={:?}", args.step),
-        format!("target_seed:={}", args.seed),
+    let mut reacher = run.reacher.clone();
+    reacher.extend([
+        format!("target_seed:={}", options.seed),
         format!("targets_file:={}", targets_file.display()),
         format!("report:={}", file.display()),
-    ];
-    reacher.extend(args.cem.ros_params());
+    ]);
     let commands = with_reacher(launch_cmd::node_commands(&options)?, &reacher, ros_args)?;
-    let mut trainer = match args.controller {
-        ControllerKind::Im | ControllerKind::FmMpc => {
-            launch_cmd::spawn_nodes(vec![trainer_command(args, ros_args)?])?
-        }
-        _ => Vec::new(),
+    let mut trainer = match run.trainer {
+        Some(models) => launch_cmd::spawn_nodes(vec![trainer_command(models, ros_args)])?,
+        None => Vec::new(),
     };
     let outcome = launch_cmd::run_graph(&options, commands, ros_args);
     launch_cmd::stop_nodes(&mut trainer)?;
     outcome?;
-    let report: serde_json::Value = serde_json::from_str(
+    Ok(serde_json::from_str(
         &std::fs::read_to_string(file)
             .with_context(|| format!("the reacher wrote no report {}", file.display()))?,
-    )?;
-    Ok(serde_json::from_value(report["summary"].clone())?)
+    )?)
 }
 
 /// The graph's node commands with the reacher in the babbler's place (its own
@@ -332,26 +392,24 @@ fn with_reacher(
         .collect())
 }
 
-/// The trainer node serving --model-dir's IM (for both services: reaching needs no FM).
-fn trainer_command(args: &ReachArgs, ros_args: &RosArgs) -> anyhow::Result<(String, Vec<String>)> {
-    let dir = model_dir(args)?;
-    // IM reaching asks no FM: the IM serves both services.
-    let forward = match args.controller {
-        ControllerKind::FmMpc => &args.forward_model,
-        _ => &args.inverse_model,
-    };
+/// The trainer node serving model directory `dir` with the given forward and inverse
+/// models.
+fn trainer_command(
+    (dir, forward, inverse): (&Path, &String, &String),
+    ros_args: &RosArgs,
+) -> (String, Vec<String>) {
     let mut node_args: Vec<String> = vec!["--ros-args".into()];
     for p in [
         format!("model_dir:={}", dir.display()),
         format!("forward_model:={forward}"),
-        format!("inverse_model:={}", args.inverse_model),
+        format!("inverse_model:={inverse}"),
     ] {
         node_args.extend(["-p".to_owned(), p]);
     }
     if let Some(enclave) = &ros_args.enclave {
         node_args.extend(["--enclave".to_owned(), enclave.clone()]);
     }
-    Ok(("causal_arm_trainer".to_owned(), node_args))
+    ("causal_arm_trainer".to_owned(), node_args)
 }
 
 fn controller(args: &ReachArgs, model: &ArmModel) -> anyhow::Result<Box<dyn Controller>> {

@@ -190,59 +190,89 @@ pub struct PlaceTrial {
     pub steps: usize,
 }
 
+/// Steps the cube gets to land after the release before a trial is over.
+pub const SETTLE_STEPS: usize = 10;
+
 impl PlaceTrial {
+    /// A trial toward `spot` that starts in `state`, no step run yet.
+    pub fn start(spot: &Vector3<f64>, state: &SimState, scene: &Scene) -> Self {
+        let mut trial = Self {
+            spot: [spot.x, spot.y, spot.z],
+            start_distance: 0.0,
+            final_distance: 0.0,
+            resting: false,
+            held_at: None,
+            released_at: None,
+            grasps: 0,
+            steps: 0,
+        };
+        trial.observe(state, scene);
+        trial.start_distance = trial.final_distance;
+        trial
+    }
+
+    /// One more step has run, its command switching the magnet by `magnet`, and left
+    /// the world in `state`; `grasps` is the controller's count of switch-ons.
+    pub fn record(&mut self, magnet: i8, state: &SimState, scene: &Scene, grasps: usize) {
+        if magnet == -1 && self.released_at.is_none() {
+            self.released_at = Some(self.steps);
+        }
+        self.steps += 1;
+        if state.holding {
+            self.held_at.get_or_insert(self.steps);
+        }
+        self.grasps = grasps;
+        self.observe(state, scene);
+    }
+
+    /// Over: the cube has had [`SETTLE_STEPS`] to land since the release.
+    pub fn over(&self) -> bool {
+        self.released_at
+            .is_some_and(|r| self.steps >= r + SETTLE_STEPS)
+    }
+
+    fn observe(&mut self, state: &SimState, scene: &Scene) {
+        let c = state.cube_pose.translation.vector;
+        self.final_distance = Vector3::new(c.x - self.spot[0], c.y - self.spot[1], 0.0).norm();
+        self.resting = !state.holding && scene.cube_rests_on_table([c.x, c.y, c.z]);
+    }
+
     /// Placed: resting on the table within `within` m of the spot.
     pub fn placed(&self, within: f64) -> bool {
         self.resting && self.final_distance <= within
     }
 }
 
-/// Runs one trial from the simulator's current state: at most `max_steps` commands,
-/// ending `settle` steps after the release (the cube has landed by then).
+/// Runs one trial from the simulator's current state as the simulator node runs it for
+/// the reacher: commands until the trial is over ([`SETTLE_STEPS`] after the release)
+/// or `max_steps` ran, then the arm held still until `max_steps + 1` actions are done.
 pub fn run_place_trial<F: ForwardModel>(
     sim: &mut Simulator,
     controller: &mut PlaceController<F>,
     spot: &Vector3<f64>,
     max_steps: usize,
 ) -> Result<PlaceTrial, ControlError> {
-    const SETTLE: usize = 10;
     controller.reset();
     let scene = sim.config().scene();
-    let horizontal = |s: &SimState| {
-        let c = s.cube_pose.translation.vector;
-        Vector3::new(c.x - spot.x, c.y - spot.y, 0.0).norm()
+    let step = |sim: &mut Simulator, command: &Command| {
+        sim.step(command)
+            .map_err(|e| ControlError::Sim(e.to_string()))
     };
     let mut state = sim.state();
-    let start_distance = horizontal(&state);
-    let (mut held_at, mut released_at, mut steps) = (None, None, 0);
-    while steps < max_steps && released_at.is_none_or(|r| steps < r + SETTLE) {
+    let mut trial = PlaceTrial::start(spot, &state, &scene);
+    while trial.steps < max_steps && !trial.over() {
         let command = controller.command(&state, spot)?;
-        if command.magnet == -1 && released_at.is_none() {
-            released_at = Some(steps);
-        }
-        state = sim
-            .step(&command)
-            .map_err(|e| ControlError::Sim(e.to_string()))?;
-        steps += 1;
-        if state.holding {
-            held_at.get_or_insert(steps);
-        }
+        state = step(sim, &command)?;
+        trial.record(command.magnet, &state, &scene, controller.grasps());
     }
-    let cube = state.cube_pose.translation.vector;
-    Ok(PlaceTrial {
-        spot: [spot.x, spot.y, spot.z],
-        start_distance,
-        final_distance: horizontal(&state),
-        resting: !state.holding && scene.cube_rests_on_table([cube.x, cube.y, cube.z]),
-        held_at,
-        released_at,
-        grasps: controller.grasps(),
-        steps,
-    })
+    for _ in trial.steps..=max_steps {
+        state = step(sim, &hold(&state))?;
+    }
+    Ok(trial)
 }
 
 /// Success shares of placing trials.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct PlaceSummary {
     /// Trials run.
     pub trials: usize,

@@ -15,8 +15,9 @@ use std::time::Duration;
 use anyhow::{Context as _, bail};
 use causal_arm_control::{
     CemSettings, Controller, Episode, ForwardModel, ImController, InverseModel, JacobianController,
-    MpcController, RandomController, StateLayout, Vector3, check_reachable, experiment_targets,
-    hold, next_state_indices, summarize,
+    MpcController, PlaceController, PlaceTrial, RandomController, StateLayout, Vector3,
+    check_reachable, experiment_targets, hold, next_state_indices, sample_spots, summarize,
+    summarize_place,
 };
 use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::srv::{
@@ -48,19 +49,42 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         ros_args,
     )?;
     let run = RunParams::from_params(node.params(), "")?;
-    let plan = run.options.plan;
-    if plan.steps_per_episode < 2 {
+    if run.options.plan.steps_per_episode < 2 {
         bail!("steps must be at least 2 (the home state and one action per episode)");
     }
+    let stop = stop_flag();
+    let task = node.params().string("task").to_owned();
+    let mut json = match task.as_str() {
+        "reach" => reach(&mut node, &run, &stop)?,
+        "place" => place(&mut node, &run, &stop)?,
+        other => bail!("task {other:?} is not one of reach, place"),
+    };
+    let report = node.params().string("report");
+    if !report.is_empty() {
+        json["max_steps"] = (run.options.plan.steps_per_episode - 1).into();
+        json["seed"] = node.params().integer("target_seed").into();
+        json["over"] = "dds".into();
+        std::fs::write(report, serde_json::to_string_pretty(&json)?)
+            .with_context(|| format!("writing the report {report}"))?;
+    }
+    Ok(())
+}
+
+/// Drives the effector to one target per episode; the report's summary and episodes.
+fn reach(
+    node: &mut RosNode,
+    run: &RunParams,
+    stop: &AtomicBool,
+) -> anyhow::Result<serde_json::Value> {
+    let plan = run.options.plan;
     let model = ArmModel::embedded();
     let experiment = run.options.experiment;
     let targets = targets(node.params(), &model, experiment, plan.episodes as usize)?;
-    let stop = stop_flag();
     let layout = StateLayout::of(experiment, &model);
     let sigma = run.options.exp1.sigma;
-    let mut controller = controller(&mut node, &model, layout, sigma, &stop)?;
+    let mut controller = controller(node, &model, layout, sigma, stop)?;
     let mut episodes: Vec<Episode> = Vec::with_capacity(targets.len());
-    answer_states(&mut node, &run, 0, &stop, |state, place| {
+    answer_states(node, run, 0, stop, |state, place| {
         let target = &targets[place.episode as usize];
         if place.in_episode == 0 {
             episodes.push(Episode::start(target, state));
@@ -88,18 +112,71 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         100.0 * summary.success_1cm,
         100.0 * summary.success_5mm
     );
-    let report = node.params().string("report");
-    if !report.is_empty() {
-        let max_steps = plan.steps_per_episode - 1;
-        let step_m = node.params().double("step");
-        let seed = node.params().integer("target_seed");
-        let json = serde_json::json!({"summary": summary, "episodes": episodes, "seed": seed,
-            "max_steps": max_steps, "step_m": step_m, "over": "dds",
-            "controller": controller.report()});
-        std::fs::write(report, serde_json::to_string_pretty(&json)?)
-            .with_context(|| format!("writing the report {report}"))?;
+    Ok(serde_json::json!({"summary": summary, "episodes": episodes,
+        "step_m": node.params().double("step"), "controller": controller.report()}))
+}
+
+/// Moves the cube to one spot on the table per episode by FM-MPC (exp 2); the report's
+/// summary and trials.
+fn place(
+    node: &mut RosNode,
+    run: &RunParams,
+    stop: &AtomicBool,
+) -> anyhow::Result<serde_json::Value> {
+    let plan = run.options.plan;
+    if run.options.experiment != Experiment::Exp2 {
+        bail!(
+            "task place moves exp2's cube; the run is {}",
+            run.options.experiment
+        );
     }
-    Ok(())
+    let model = ArmModel::embedded();
+    let scene = run.options.sim.scene();
+    let episodes = plan.episodes as usize;
+    let spots = match node.params().string("targets_file") {
+        "" => {
+            let seed = node.params().integer("target_seed") as u64;
+            sample_spots(&scene, run.options.sim.spawn_margin, episodes, seed)
+        }
+        file => read_points(Path::new(file))?,
+    };
+    if spots.len() != episodes {
+        bail!("{} spots for a run of {episodes} episodes", spots.len());
+    }
+    let settings = cem_settings(node.params())?;
+    let seed = node.params().integer("target_seed") as u64;
+    let fm = ServedFm::connect(node, stop)?;
+    let layout = StateLayout::of(Experiment::Exp2, &model);
+    let mpc = MpcController::new(model, layout, fm, settings, seed)?;
+    let mut controller = PlaceController::new(mpc, scene);
+    let mut trials: Vec<PlaceTrial> = Vec::with_capacity(episodes);
+    let mut magnet = 0;
+    answer_states(node, run, 0, stop, |state, place| {
+        let spot = &spots[place.episode as usize];
+        if place.in_episode == 0 {
+            controller.reset();
+            trials.push(PlaceTrial::start(spot, state, &scene));
+        }
+        let trial = trials.last_mut().expect("started at step 0 of its episode");
+        let ran = place.in_episode as usize;
+        if ran > 0 && !trial.over() && trial.steps < ran {
+            trial.record(magnet, state, &scene, controller.grasps());
+        }
+        let last = place.in_episode + 1 == plan.steps_per_episode;
+        let command = match trial.over() || last {
+            true => hold(state),
+            false => controller.command(state, spot)?,
+        };
+        magnet = command.magnet;
+        Ok(command)
+    })?;
+    let summary = summarize_place(&trials);
+    tracing::info!(
+        "fm-mpc place: {} trials, within 3 cm {:.0} %",
+        trials.len(),
+        100.0 * summary.placed_3cm
+    );
+    Ok(serde_json::json!({"summary": summary, "trials": trials, "planner": controller.report()}))
 }
 
 /// One target per episode: those of `targets_file`, or sampled from `target_seed`.
@@ -126,8 +203,8 @@ fn targets(
     Ok(targets)
 }
 
-/// Reachable targets from a JSON file `[[x, y, z], …]`.
-fn read_targets(file: &Path, model: &ArmModel) -> anyhow::Result<Vec<Vector3<f64>>> {
+/// Positions from a JSON file `[[x, y, z], …]`.
+fn read_points(file: &Path) -> anyhow::Result<Vec<Vector3<f64>>> {
     let text = std::fs::read_to_string(file)
         .with_context(|| format!("reading the targets file {}", file.display()))?;
     let points: Vec<[f64; 3]> = serde_json::from_str(&text).with_context(|| {
@@ -136,11 +213,15 @@ fn read_targets(file: &Path, model: &ArmModel) -> anyhow::Result<Vec<Vector3<f64
             file.display()
         )
     })?;
-    points
-        .iter()
+    Ok(points.into_iter().map(Vector3::from).collect())
+}
+
+/// Reachable targets from a JSON file `[[x, y, z], …]`.
+fn read_targets(file: &Path, model: &ArmModel) -> anyhow::Result<Vec<Vector3<f64>>> {
+    read_points(file)?
+        .into_iter()
         .enumerate()
-        .map(|(i, p)| {
-            let goal = Vector3::from(*p);
+        .map(|(i, goal)| {
             check_reachable(model, &goal)
                 .with_context(|| format!("{}: target {i}", file.display()))?;
             Ok(goal)

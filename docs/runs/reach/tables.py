@@ -73,19 +73,22 @@ def main():
             ok, bad = accuracy_vs_success(r)
             print(f"| {d.name} ({r['over']}, horizon {r['controller']['cem']['horizon']}) | {row(r)} | {ms_per_decision(r)} | {ok} / {bad} |")
     elif what == "place":
-        print("| seed | trials | within 3 cm | within 1 cm | cube held | final distance p10/p50/p90 (m) | median steps | ms per decision |")
-        print("|---|---|---|---|---|---|---|---|")
+        print("| seed | trials | within 3 cm | within 1 cm | cube held | final distance p10/p50/p90 (m) | median steps | "
+              "ms per decision | DDS = in process |")
+        print("|---|---|---|---|---|---|---|---|---|")
         for d in sorted(root.glob("place_s*")):
-            if not d.is_dir():
+            if not d.is_dir() or d.name.endswith("_proc"):
                 continue
             r = load(d / "report.json")
+            local = d.with_name(d.name + "_proc") / "report.json"
+            same = ("yes" if load(local)["trials"] == r["trials"] else "NO") if local.exists() else "-"
             m = r["summary"]
             q = " / ".join(f"{x:.4f}" for x in m["final_distance_p10_p50_p90"])
             steps = statistics.median(t["steps"] for t in r["trials"])
             log = r["planner"]["log"]
             ms = 1e3 * log["decision_seconds"] / log["decisions"]
             print(f"| {d.name[7:]} | {m['trials']} | {100 * m['placed_3cm']:.0f} % | {100 * m['placed_1cm']:.0f} % | "
-                  f"{100 * m['held']:.0f} % | {q} | {steps:.0f} | {ms:.2f} |")
+                  f"{100 * m['held']:.0f} % | {q} | {steps:.0f} | {ms:.2f} | {same} |")
     else:
         sys.exit(__doc__)
 

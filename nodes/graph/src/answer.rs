@@ -31,8 +31,10 @@ pub struct StepPlace {
 
 /// Answers every state of `run` from step `start` on with `choose`'s command, until the
 /// run's last step or `stop`; returns how many steps were answered in all. `node` takes
-/// its `wait_for_recorder` and `timeout` parameters from its graph-file declaration.
+/// its `wait_for_recorder` and `timeout` parameters from its graph-file declaration;
+/// `who` names it in the closing log line ("babbler answered 500 of 500 steps; …").
 pub fn answer_states(
+    who: &str,
     node: &mut RosNode,
     run: &RunParams,
     start: u64,
@@ -104,7 +106,7 @@ pub fn answer_states(
     // Let reliable delivery of the last action complete.
     std::thread::sleep(Duration::from_millis(200));
     tracing::info!(
-        "answered {answered} of {total} steps; {}",
+        "{who} answered {answered} of {total} steps; {}",
         refusal_summary(&feeds, &joiner)
     );
     Ok(answered)

@@ -21,7 +21,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         0 => Babbler::new(&run.options, &ArmModel::embedded())?,
         _ => fast_forward(&run.options, start)?.1,
     };
-    answer_states(&mut node, &run, start, &stop, |state, place| {
+    answer_states("babbler", &mut node, &run, start, &stop, |state, place| {
         if place.in_episode == 0 && place.step > 0 {
             babbler.reset();
         }

@@ -194,6 +194,17 @@ pub(crate) struct Writer {
   #[allow(dead_code)]
   pub data_max_size_serialized: usize,
 
+  /// SEDP writers push a new sample only to matched readers that have sent an
+  /// ACKNACK, unicast. A participant that has not yet processed our SPDP (so
+  /// has not matched this writer) must not receive our SEDP DATA: Fast DDS 2.x
+  /// builtin readers accept DATA from an unmatched "trusted" SEDP writer,
+  /// drop it as coming from an unknown participant, yet record its sequence
+  /// number as delivered, so that endpoint is never announced to them. A
+  /// multicast push reaches exactly such participants. Readers skipped here
+  /// keep the change unsent and get it by repair after their first ACKNACK
+  /// (sent on match, preemptively, by rustdds and Fast DDS readers).
+  push_only_to_acked_readers: bool,
+
   my_guid: GUID,
 
   /// The RTPS ReaderProxy class represents the information an RTPS
@@ -348,10 +359,13 @@ impl Writer {
       },
     );
 
+    let push_only_to_acked_readers = is_sedp_writer(i.guid.entity_id);
+
     Self {
       endianness: Endianness::LittleEndian,
       heartbeat_message_counter: atomic::AtomicI32::new(1),
       push_mode: true,
+      push_only_to_acked_readers,
       heartbeat_period,
       heartbeat_period_fast,
       cache_cleaning_period,
@@ -653,6 +667,34 @@ impl Writer {
   // repair path (`mark_change_sent`), so a best-effort push (which never gets
   // ACKNACKs) left `unsent_changes` growing by one entry per sample forever.
   // Pruning here keeps the per-reader bookkeeping bounded on the push path too.
+  /// Pushes one sample, unicast, to each matched reader that has sent an
+  /// ACKNACK (see `push_only_to_acked_readers`). The others keep it unsent and
+  /// get it by repair after their first ACKNACK.
+  fn push_to_acked_readers(&mut self, cc: &CacheChange, sequence_number: SequenceNumber) {
+    let acked: Vec<GUID> = self
+      .readers
+      .values()
+      .filter(|reader| reader.last_acknack_count.is_some())
+      .map(|reader| reader.remote_reader_guid)
+      .collect();
+    for guid in acked {
+      if let Some(reader) = self.readers.get(&guid) {
+        // The Control class never blocks, so the whole sample goes out.
+        let _ = self.send_cache_change_from(
+          cc,
+          true, // with a HEARTBEAT
+          Some(reader),
+          SampleCursor::Fresh,
+          TrafficClass::Control,
+          false, // not paced
+        );
+      }
+      if let Some(reader) = self.readers.get_mut(&guid) {
+        reader.mark_change_sent(sequence_number);
+      }
+    }
+  }
+
   fn mark_change_sent_to_all_readers(&mut self, sequence_number: SequenceNumber) {
     if self.like_stateless {
       return;
@@ -667,7 +709,8 @@ impl Writer {
   // (multicast-to-all). Fragmented or single-reader samples keep the existing
   // per-sample / per-fragment path.
   fn is_aggregatable(&self, cc: &CacheChange) -> bool {
-    cc.data_value.payload_size() <= self.max_unfragmented_serialized_payload(None)
+    !self.push_only_to_acked_readers
+      && cc.data_value.payload_size() <= self.max_unfragmented_serialized_payload(None)
       && cc.write_options.to_single_reader().is_none()
   }
 
@@ -866,6 +909,17 @@ impl Writer {
             }
           }
         }
+      }
+
+      if self.push_mode
+        && self.push_only_to_acked_readers
+        && write_options.to_single_reader().is_none()
+      {
+        self.push_to_acked_readers(&cc, sequence_number);
+        self.last_sent = sequence_number;
+        self.sample_cursor = SampleCursor::Fresh;
+        self.send_buffer.set_sent_frontier(sequence_number);
+        continue;
       }
 
       if self.push_mode {
@@ -2713,6 +2767,19 @@ impl<'a> Iterator for FragmentationIter<'a> {
 // -------------------------------------------------------------------------------------
 // -------------------------------------------------------------------------------------
 
+/// The SEDP (endpoint discovery) writers, plain and secure: see
+/// `Writer::push_only_to_acked_readers`.
+fn is_sedp_writer(entity_id: EntityId) -> bool {
+  [
+    EntityId::SEDP_BUILTIN_TOPIC_WRITER,
+    EntityId::SEDP_BUILTIN_PUBLICATIONS_WRITER,
+    EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_WRITER,
+    EntityId::SEDP_BUILTIN_PUBLICATIONS_SECURE_WRITER,
+    EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_SECURE_WRITER,
+  ]
+  .contains(&entity_id)
+}
+
 #[cfg(test)]
 mod tests {
   use std::thread;
@@ -3214,6 +3281,38 @@ mod tests {
       assert_eq!(f.repair_round(), 5);
     }
 
+    // An SEDP writer pushes nothing to a matched reader that has not sent an
+    // ACKNACK (it may not know our participant yet; Fast DDS would drop the
+    // DATA and count it delivered). The first ACKNACK gets it all by repair,
+    // and later samples are pushed to it. A user writer pushes to every reader.
+    #[test]
+    fn sedp_writer_pushes_only_to_readers_that_acknacked() {
+      let mut f = Fixture::sedp(3, 8);
+      f.writer.nack_response_delay = StdDuration::ZERO;
+      f.writer.process_pending();
+      assert_eq!(f.unsent(), 3, "pushed to a reader that has not ACKNACKed");
+
+      f.ack_nack([], 1); // preemptive: base 1, nothing requested
+      assert_eq!(f.repair_round(), 3);
+
+      let data = DDSData::new(SerializedPayload::new(
+        RepresentationIdentifier::CDR_LE,
+        vec![0; 8],
+      ));
+      assert!(matches!(
+        f.writer
+          .send_buffer
+          .admit_blocking(WriteOptions::default(), data, Some(StdDuration::ZERO)),
+        Admission::Admitted(_)
+      ));
+      f.writer.process_pending();
+      assert_eq!(f.unsent(), 0, "not pushed to a reader that has ACKNACKed");
+
+      let mut user = Fixture::user(3, 8, None);
+      user.writer.process_pending();
+      assert_eq!(user.unsent(), 0, "a user writer pushes to every reader");
+    }
+
     // While the reader's send socket has queued control datagrams, a round
     // sends nothing and re-arms; once the queue drains, repair proceeds.
     #[test]
@@ -3234,3 +3333,4 @@ mod tests {
     }
   }
 }
+

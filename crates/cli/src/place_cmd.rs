@@ -18,7 +18,7 @@ use causal_arm_protocol::Experiment;
 use clap::Args;
 
 use crate::progress::Counter;
-use crate::reach_cmd::{CemArgs, ReacherRun, run_options, run_reacher_graph};
+use crate::reach_cmd::{CemArgs, ControlRunArgs, ReacherRun, run_options, run_reacher_graph};
 use crate::reach_models::TrainedFm;
 
 /// `causal-arm place` options.
@@ -42,16 +42,8 @@ pub struct PlaceArgs {
     /// Steps per trial before giving up.
     #[arg(long, default_value_t = 400, allow_negative_numbers = true)]
     max_steps: i64,
-    /// Run in this process with the simulator library, instead of over DDS.
-    #[arg(long)]
-    in_process: bool,
-    /// Directory for report.json (and, over DDS, the run's bag in OUT/bag and the spots
-    /// in OUT/targets.json).
-    #[arg(long)]
-    out: PathBuf,
-    /// Replace a bag already in OUT/bag.
-    #[arg(long)]
-    overwrite: bool,
+    #[command(flatten)]
+    run: ControlRunArgs,
 }
 
 /// Runs `causal-arm place`.
@@ -62,24 +54,30 @@ pub fn run(args: &PlaceArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     };
     // Refuse a directory without an exp 2 FM before anything starts.
     let fm = TrainedFm::load(&args.model_dir, &args.forward_model, Experiment::Exp2)?;
-    let options = run_options(Experiment::Exp2, args.seed, &args.out, trials, max_steps);
+    let options = run_options(
+        Experiment::Exp2,
+        args.seed,
+        &args.run.out,
+        trials,
+        max_steps,
+    );
     let spots = sample_spots(
         &options.sim.scene(),
         options.sim.spawn_margin,
         trials,
         args.seed,
     );
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    let file = args.out.join("report.json");
-    let report = match args.in_process {
+    std::fs::create_dir_all(&args.run.out)
+        .with_context(|| format!("creating {}", args.run.out.display()))?;
+    let file = args.run.out.join("report.json");
+    let report = match args.run.in_process {
         true => in_process(args, fm, &options, &spots, max_steps)?,
         false => {
             let mut reacher = vec!["task:=place".to_owned()];
             reacher.extend(args.cem.ros_params());
             let run = ReacherRun {
                 options,
-                overwrite: args.overwrite,
+                overwrite: args.run.overwrite,
                 points: &spots,
                 reacher,
                 trainer: Some((&args.model_dir, &args.forward_model, &args.forward_model)),

@@ -95,17 +95,24 @@ pub struct ReachArgs {
     /// IM 84 % at 5 cm, 91 % at 10 cm; a 30-epoch IM 70 % and 27 %; both 0 % at 2 cm).
     #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     step: f64,
+    #[command(flatten)]
+    run: ControlRunArgs,
+}
+
+/// Where a control run (`reach`, `place`) runs and writes; shared so both read the same.
+#[derive(Debug, Args)]
+pub(crate) struct ControlRunArgs {
     /// Run in this process with the simulator library, instead of over DDS with the
-    /// simulator, recorder and reacher nodes (and a trainer node for the IM).
+    /// simulator, recorder and reacher nodes (and a trainer node for a learned model).
     #[arg(long)]
-    in_process: bool,
-    /// Directory for report.json (and, over DDS, the run's bag in OUT/bag and the targets
-    /// in OUT/targets.json).
+    pub(crate) in_process: bool,
+    /// Directory for report.json and, over DDS, the run's bag in OUT/bag and its targets
+    /// or spots in OUT/targets.json.
     #[arg(long)]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
     /// Replace a bag already in OUT/bag.
     #[arg(long)]
-    overwrite: bool,
+    pub(crate) overwrite: bool,
 }
 
 /// The cross-entropy method of `--controller fm-mpc` (defaults: `CemSettings::default()`,
@@ -184,10 +191,10 @@ pub fn run(args: &ReachArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
     };
     // Refuse a model directory without a usable IM before anything starts.
     let mut controller = controller(args, &model)?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    let file = args.out.join("report.json");
-    let summary = match args.in_process {
+    std::fs::create_dir_all(&args.run.out)
+        .with_context(|| format!("creating {}", args.run.out.display()))?;
+    let file = args.run.out.join("report.json");
+    let summary = match args.run.in_process {
         true => in_process(args, controller.as_mut(), &goals, max_steps, &file)?,
         false => over_dds(args, ros_args, &goals, max_steps, &file)?,
     };
@@ -218,7 +225,7 @@ fn in_process(
     let mut sim = causal_arm_datagen::simulator(&run_options(
         args.experiment,
         args.seed,
-        &args.out,
+        &args.run.out,
         goals.len(),
         max_steps,
     ))?;
@@ -287,11 +294,11 @@ fn over_dds(
         options: run_options(
             args.experiment,
             args.seed,
-            &args.out,
+            &args.run.out,
             goals.len(),
             max_steps,
         ),
-        overwrite: args.overwrite,
+        overwrite: args.run.overwrite,
         points: goals,
         reacher,
         trainer,

@@ -4,7 +4,6 @@
 usage: tables.py exp2 RUNS_DIR | mpc RUNS_DIR | place RUNS_DIR"""
 
 import json
-import math
 import pathlib
 import re
 import statistics

@@ -158,8 +158,7 @@ fn place(
             trials.push(PlaceTrial::start(spot, state, &scene));
         }
         let trial = trials.last_mut().expect("started at step 0 of its episode");
-        let ran = place.in_episode as usize;
-        if ran > 0 && !trial.over() && trial.steps < ran {
+        if place.in_episode > 0 && !trial.over() {
             trial.record(magnet, state, &scene, controller.grasps());
         }
         let last = place.in_episode + 1 == plan.steps_per_episode;

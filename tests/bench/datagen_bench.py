@@ -4,6 +4,8 @@
 Runs, in one go on this machine:
   * `causal-arm generate exp1` (simulator + babbler + bag writing, one process, no DDS)
   * `causal-arm generate exp2`
+  * both again with `--arm dynamic` (the arm a multibody under gravity moved by
+    force-limited motors, instead of kinematic bodies placed by forward kinematics)
   * both again with `--shards 2` (two seeded shards simulated side by side, one per core),
     and `launch exp1 --shards 2` (two graphs in two ROS domains)
   * `causal-arm launch exp1` (simulator, babbler and recorder as three DDS processes in
@@ -73,14 +75,14 @@ def ours_dds(binary: str, steps: int, shards: int = 1) -> float:
         return steps / (time.perf_counter() - start)
 
 
-def ours(binary: str, experiment: str, steps: int, shards: int = 1) -> float:
+def ours(binary: str, experiment: str, steps: int, shards: int = 1, arm: str = "kinematic") -> float:
     with tempfile.TemporaryDirectory() as tmp:
         out = pathlib.Path(tmp) / "bag"
         size = ["--steps", str(steps)] if experiment == "exp1" else ["--episodes", str(max(1, steps // 500))]
         total = steps if experiment == "exp1" else max(1, steps // 500) * 500
         start = time.perf_counter()
         subprocess.run([binary, "generate", experiment, *size, "--seed", "1", "--shards", str(shards),
-                        "--out", str(out)], check=True, capture_output=True, text=True)
+                        "--arm", arm, "--out", str(out)], check=True, capture_output=True, text=True)
         elapsed = time.perf_counter() - start
         return total / elapsed
 
@@ -94,6 +96,8 @@ def main():
         ("PyBullet exp1 loop (reference, no recording)", pybullet_exp1(args.steps)),
         ("causal-arm generate exp1 (in-process, writes bag)", ours(args.bin, "exp1", args.steps)),
         ("causal-arm generate exp2 (in-process, writes bag)", ours(args.bin, "exp2", args.steps)),
+        ("causal-arm generate exp1 --arm dynamic", ours(args.bin, "exp1", args.steps, arm="dynamic")),
+        ("causal-arm generate exp2 --arm dynamic", ours(args.bin, "exp2", args.steps, arm="dynamic")),
         ("causal-arm generate exp1 --shards 2 (2 threads)", ours(args.bin, "exp1", args.steps, 2)),
         ("causal-arm generate exp2 --shards 2 (2 threads)", ours(args.bin, "exp2", args.steps, 2)),
     ]
@@ -111,6 +115,8 @@ def main():
         one = by_name[f"causal-arm generate {experiment} (in-process, writes bag)"]
         two = by_name[f"causal-arm generate {experiment} --shards 2 (2 threads)"]
         print(f"{experiment}: 2 shards are {two / one:.2f}x one shard")
+        dynamic = by_name[f"causal-arm generate {experiment} --arm dynamic"]
+        print(f"{experiment}: the dynamic arm runs at {dynamic / one:.2f}x the kinematic one")
     if "causal-arm launch exp1 --shards 2 (2 graphs)" in by_name:
         one = by_name["causal-arm launch exp1 (3 DDS processes, lock-step)"]
         two = by_name["causal-arm launch exp1 --shards 2 (2 graphs)"]

@@ -1,6 +1,6 @@
-//! `causal-arm bag info|check|recover`: what a bag holds (like `ros2 bag info`), whether
-//! it is sound (like `mcap doctor`), and a new bag from what is intact (like `mcap recover`
-//! and `ros2 bag reindex`).
+//! `causal-arm bag info|check|recover|stats`: what a bag holds (like `ros2 bag info`),
+//! whether it is sound (like `mcap doctor`), a new bag from what is intact (like `mcap
+//! recover` and `ros2 bag reindex`), and the physics its data shows (`stats`).
 
 use std::path::{Path, PathBuf};
 
@@ -43,6 +43,15 @@ enum BagCommand {
         #[arg(long)]
         overwrite: bool,
     },
+    /// Physical statistics of the data, as JSON: commanded and realized joint changes, how
+    /// deep and how often the arm's links went into the table, and in exp 2 how often the
+    /// cube lay on the floor and how often switching the magnet on caught it. Several bags
+    /// (or a shard set) are described as one dataset.
+    Stats {
+        /// Bag directories or shard sets.
+        #[arg(required = true)]
+        bags: Vec<PathBuf>,
+    },
 }
 
 /// Runs `causal-arm bag …`.
@@ -55,7 +64,22 @@ pub fn run(args: &BagArgs) -> anyhow::Result<()> {
             out,
             overwrite,
         } => recover(bag, out, *overwrite),
+        BagCommand::Stats { bags } => stats(bags),
     }
+}
+
+/// Prints the physical statistics of `bags` (one dataset) as JSON.
+fn stats(bags: &[PathBuf]) -> anyhow::Result<()> {
+    let (data, _) = causal_arm_dataset::load_bags(
+        bags,
+        None,
+        causal_arm_dataset::ActionSource::Commanded,
+        None,
+    )?;
+    let stats = causal_arm_datastats::describe(&data, &causal_arm_sim::SimConfig::default())
+        .context("describing the data")?;
+    println!("{}", serde_json::to_string_pretty(&stats)?);
+    Ok(())
 }
 
 /// Prints `report` of `path` as JSON, or for a shard set a JSON array of its shards'

@@ -8,6 +8,7 @@ use anyhow::Context as _;
 use causal_arm_datagen::{GenerateOptions, generate, generate_shards, shard_options};
 use causal_arm_protocol::graph::run_default_text;
 use causal_arm_protocol::{Experiment, Profile, RunPlan};
+use causal_arm_sim::ArmMode;
 use clap::Args;
 
 use crate::choice::choice;
@@ -62,6 +63,11 @@ pub struct GenerateArgs {
     /// faster, see docs/RESULTS.md).
     #[arg(allow_negative_numbers = true, long, default_value = run_default_text("velocity_scale"))]
     velocity_scale: f64,
+    /// How the simulator moves the arm: kinematic (links placed by forward kinematics:
+    /// exact and fast, but they pass through the table) or dynamic (a multibody under
+    /// gravity, moved by motors within the URDF efforts: it stalls on the table).
+    #[arg(long, default_value = run_default_text("arm"), value_parser = choice::<ArmMode>())]
+    arm: ArmMode,
     /// Exp 2: move while switching the magnet (default), so the data can show that the
     /// magnet does not move the joints; `false` holds the arm still at every switch, as
     /// bags made before this default did (see docs/RESULTS.md).
@@ -105,6 +111,7 @@ impl GenerateArgs {
         }
         within_graph_range("velocity_scale", self.velocity_scale)?;
         options.sim.velocity_scale = self.velocity_scale;
+        options.sim.arm = self.arm;
         options.exp2.move_while_switching = self.move_while_switching;
         Ok(options)
     }

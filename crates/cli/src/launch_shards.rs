@@ -105,6 +105,7 @@ fn shard_args(shard: &GenerateOptions, ros_args: &RosArgs) -> Vec<String> {
                 "--velocity-scale",
                 format!("{:?}", shard.sim.velocity_scale),
             ),
+            ("--arm", shard.sim.arm.to_string()),
             (
                 "--move-while-switching",
                 shard.exp2.move_while_switching.to_string(),

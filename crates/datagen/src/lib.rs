@@ -62,6 +62,7 @@ impl GenerateOptions {
                 bag_keys::VELOCITY_SCALE.to_owned(),
                 self.sim.velocity_scale.to_string(),
             ),
+            (bag_keys::ARM.to_owned(), self.sim.arm.to_string()),
             (
                 bag_keys::EPISODES.to_owned(),
                 self.plan.episodes.to_string(),

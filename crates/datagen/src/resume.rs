@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use causal_arm_bag::{BagReader, RawMessage};
-use causal_arm_protocol::topics;
+use causal_arm_protocol::{bag_keys, topics};
 
 use crate::{BagSink, GenerateError, GenerateOptions};
 
@@ -44,7 +44,12 @@ fn read_resumable(dir: &Path, options: &GenerateOptions) -> Result<Resumable, Ge
     let reader = BagReader::open(dir)?;
     let recorded = reader.custom_data();
     for (key, want) in options.bag_custom_data() {
-        let got = recorded.get(&key).map(String::as_str).unwrap_or("(none)");
+        // Bags written before the dynamic arm existed used the kinematic one.
+        let unrecorded = match key == bag_keys::ARM {
+            true => "kinematic",
+            false => "(none)",
+        };
+        let got = recorded.get(&key).map(String::as_str).unwrap_or(unrecorded);
         if got != want {
             return Err(GenerateError::Options(format!(
                 "{}: cannot resume another run: the bag has {key} = {got}, this run {key} = {want}",

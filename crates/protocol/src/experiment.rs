@@ -134,6 +134,9 @@ pub mod bag_keys {
     pub const SIGMA: &str = "causal_arm.sigma";
     /// Scale of the URDF joint velocity limits.
     pub const VELOCITY_SCALE: &str = "causal_arm.velocity_scale";
+    /// How the simulator moved the arm, `kinematic` or `dynamic` (bags written before the
+    /// dynamic arm existed lack the key and used the kinematic one).
+    pub const ARM: &str = "causal_arm.arm";
     /// Exp 2 babbler moves while switching the magnet (`true`/`false`; bags written before
     /// it became the default lack the key and held the arm still).
     pub const MOVE_WHILE_SWITCHING: &str = "causal_arm.move_while_switching";

@@ -37,7 +37,31 @@ pub struct SimConfig {
     pub seed: u64,
     /// Collision shape of the arm links' URDF cylinders (the magnet tool is always exact).
     pub link_cylinders: LinkCylinders,
+    /// How the arm moves: placed by forward kinematics, or a multibody moved by motors.
+    pub arm: ArmMode,
+    /// Dynamic arm: natural frequency of each joint's motor (a critically damped spring
+    /// on the inertia the joint moves), Hz.
+    pub motor_frequency: f64,
 }
+
+/// How the simulated arm moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ArmMode {
+    /// Links are kinematic bodies placed by forward kinematics from the servo: exact,
+    /// deterministic and fast, but they pass through the table and push the cube with
+    /// unlimited force.
+    #[default]
+    Kinematic,
+    /// A rapier multibody with the URDF masses and inertias under gravity, moved by joint
+    /// position motors limited to the URDF efforts: it stalls on the table and can be
+    /// pushed back.
+    Dynamic,
+}
+
+causal_arm_protocol::choice!(ArmMode, "arm mode", [
+    ArmMode::Kinematic => "kinematic",
+    ArmMode::Dynamic => "dynamic",
+]);
 
 /// URDF link whose collision shape is always kept exact: the magnet tool touching the cube.
 pub const MAGNET_LINK: &str = "magnet";
@@ -74,6 +98,8 @@ impl Default for SimConfig {
             home: [0.0, 0.5, 0.0, -1.2, 0.0, 0.8, 0.0],
             seed: 0,
             link_cylinders: LinkCylinders::Capsules,
+            arm: ArmMode::Kinematic,
+            motor_frequency: 30.0,
         }
     }
 }
@@ -94,11 +120,12 @@ impl SimConfig {
         if !(self.dt > 0.0
             && self.substeps > 0
             && self.servo_gain > 0.0
-            && self.velocity_scale > 0.0)
+            && self.velocity_scale > 0.0
+            && self.motor_frequency > 0.0)
         {
             return Err(SimError::Config(format!(
-                "dt ({}), substeps ({}), servo_gain ({}) and velocity_scale ({}) must be positive",
-                self.dt, self.substeps, self.servo_gain, self.velocity_scale
+                "dt ({}), substeps ({}), servo_gain ({}), velocity_scale ({}) and motor_frequency ({}) must be positive",
+                self.dt, self.substeps, self.servo_gain, self.velocity_scale, self.motor_frequency
             )));
         }
         Ok(())

@@ -7,7 +7,9 @@
 //!   the joint moves (distal links at the home pose). The arm's links are kinematic bodies
 //!   in rapier3d placed by our own forward kinematics, so they push the cube but are not
 //!   pushed back. This keeps joint tracking exact, deterministic and fast: physics only
-//!   integrates the cube (the one free body) and its contacts.
+//!   integrates the cube (the one free body) and its contacts. `SimConfig::arm =
+//!   ArmMode::Dynamic` makes the arm a rapier multibody instead, under gravity, whose
+//!   force-limited joint motors track the same servo path (`dynamic.rs`).
 //! - **Physics** is rapier3d at 240 Hz; each command runs for `substeps` steps (10).
 //!   The links' URDF cylinders become capsules of the same radius and length (see
 //!   [`LinkCylinders`]); the magnet tool keeps its exact cylinder.
@@ -22,11 +24,14 @@
 #![allow(clippy::needless_range_loop)]
 
 mod config;
+mod dynamic;
 mod magnet;
+mod probe;
 mod servo;
 mod world;
 
-pub use config::{LinkCylinders, MAGNET_LINK, SimConfig};
+pub use config::{ArmMode, LinkCylinders, MAGNET_LINK, SimConfig};
+pub use probe::TableProbe;
 
 use ::nalgebra::Isometry3;
 use causal_arm_kinematics::{ArmModel, KinematicsError};
@@ -39,6 +44,8 @@ use rand::rngs::StdRng;
 use rapier3d::prelude::{PhysicsWorld, RigidBodyHandle};
 use thiserror::Error;
 
+use dynamic::DynamicArm;
+use servo::ServoLimits;
 use world::{LinkBody, clone_world, from_pose};
 
 /// Why a simulator could not be built or a command was refused.
@@ -71,11 +78,8 @@ pub struct Simulator {
     q: [f64; ARM_DOF],
     qd: [f64; ARM_DOF],
     effort: [f64; ARM_DOF],
-    accel_limit: [f64; ARM_DOF],
-    joint_inertia: [f64; ARM_DOF],
-    velocity_limit: [f64; ARM_DOF],
-    lower: [f64; ARM_DOF],
-    upper: [f64; ARM_DOF],
+    limits: ServoLimits,
+    dynamic: Option<DynamicArm>,
     ef: Isometry3<f64>,
     magnet_on: bool,
     hold_offset: Option<Isometry3<f64>>,
@@ -96,11 +100,8 @@ impl Clone for Simulator {
             q: self.q,
             qd: self.qd,
             effort: self.effort,
-            accel_limit: self.accel_limit,
-            joint_inertia: self.joint_inertia,
-            velocity_limit: self.velocity_limit,
-            lower: self.lower,
-            upper: self.upper,
+            limits: self.limits.clone(),
+            dynamic: self.dynamic.clone(),
             ef: self.ef,
             magnet_on: self.magnet_on,
             hold_offset: self.hold_offset,
@@ -156,15 +157,26 @@ impl Simulator {
             -1 => self.magnet_on = false,
             _ => {}
         }
-        let target: [f64; ARM_DOF] =
-            std::array::from_fn(|i| command.joint_targets[i].clamp(self.lower[i], self.upper[i]));
+        let target: [f64; ARM_DOF] = std::array::from_fn(|i| {
+            command.joint_targets[i].clamp(self.limits.lower[i], self.limits.upper[i])
+        });
         let dt = self.config.dt;
         for _ in 0..self.config.substeps {
-            self.servo(&target, dt);
-            let previous_ef = self.ef;
-            self.place_arm(false);
-            self.update_magnet(&previous_ef, dt);
-            self.world.step();
+            match self.dynamic.is_some() {
+                false => {
+                    self.servo(&target, dt);
+                    let previous_ef = self.ef;
+                    self.place_arm(false);
+                    self.update_magnet(&previous_ef, dt);
+                    self.world.step();
+                }
+                true => {
+                    self.drive_dynamic_arm(&target, dt);
+                    self.world.step();
+                    self.read_dynamic_joints();
+                    self.update_dynamic_magnet();
+                }
+            }
         }
         self.step += 1;
         Ok(self.state())
@@ -233,3 +245,5 @@ impl Simulator {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_dynamic;

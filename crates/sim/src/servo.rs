@@ -9,6 +9,7 @@ use crate::world::urdf_pose;
 use crate::{SimConfig, SimError, Simulator};
 
 /// Per-joint limits of the servos, worked out once from the URDF when the world is built.
+#[derive(Clone)]
 pub(crate) struct ServoLimits {
     /// Largest joint acceleration, rad/s² (effort limit / moved inertia).
     pub(crate) accel_limit: [f64; ARM_DOF],
@@ -107,30 +108,59 @@ impl ServoLimits {
     }
 }
 
-impl Simulator {
-    /// Moves every joint one substep toward `target` within its velocity and acceleration
-    /// limits, recording the effort that took.
-    pub(crate) fn servo(&mut self, target: &[f64; ARM_DOF], dt: f64) {
+impl ServoLimits {
+    /// Moves every joint of (`q`, `qd`) one substep toward `target` within the velocity
+    /// and acceleration limits, recording in `effort` the torque that took.
+    pub(crate) fn step(
+        &self,
+        gain: f64,
+        target: &[f64; ARM_DOF],
+        q: &mut [f64; ARM_DOF],
+        qd: &mut [f64; ARM_DOF],
+        effort: &mut [f64; ARM_DOF],
+        dt: f64,
+    ) {
         for i in 0..ARM_DOF {
             let v_max = self.velocity_limit[i];
-            let desired = (self.config.servo_gain * (target[i] - self.q[i])).clamp(-v_max, v_max);
+            let desired = (gain * (target[i] - q[i])).clamp(-v_max, v_max);
             // Do not overshoot the target within this substep.
-            let desired = if desired.abs() * dt > (target[i] - self.q[i]).abs() {
-                (target[i] - self.q[i]) / dt
+            let desired = if desired.abs() * dt > (target[i] - q[i]).abs() {
+                (target[i] - q[i]) / dt
             } else {
                 desired
             };
             let dv_max = self.accel_limit[i] * dt;
-            let dv = (desired - self.qd[i]).clamp(-dv_max, dv_max);
-            self.effort[i] = self.joint_inertia[i] * dv / dt;
-            self.qd[i] += dv;
-            let next = self.q[i] + self.qd[i] * dt;
+            let dv = (desired - qd[i]).clamp(-dv_max, dv_max);
+            effort[i] = self.joint_inertia[i] * dv / dt;
+            qd[i] += dv;
+            let next = q[i] + qd[i] * dt;
             if next <= self.lower[i] || next >= self.upper[i] {
-                self.q[i] = next.clamp(self.lower[i], self.upper[i]);
-                self.qd[i] = 0.0;
+                q[i] = next.clamp(self.lower[i], self.upper[i]);
+                qd[i] = 0.0;
             } else {
-                self.q[i] = next;
+                q[i] = next;
             }
         }
+    }
+}
+
+impl Simulator {
+    /// Moves every joint one substep toward `target` within its velocity and acceleration
+    /// limits, recording the effort that took (the kinematic arm: the servo is the motion).
+    pub(crate) fn servo(&mut self, target: &[f64; ARM_DOF], dt: f64) {
+        let gain = self.config.servo_gain;
+        self.limits.step(
+            gain,
+            target,
+            &mut self.q,
+            &mut self.qd,
+            &mut self.effort,
+            dt,
+        );
+    }
+
+    /// The servo limits (the dynamic arm's reference moves within them too).
+    pub(crate) fn servo_limits(&self) -> &ServoLimits {
+        &self.limits
     }
 }

@@ -10,8 +10,9 @@ use rapier3d::prelude::{
     ColliderBuilder, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, RigidBodyType,
 };
 
+use crate::dynamic::insert_dynamic_arm;
 use crate::servo::ServoLimits;
-use crate::{LinkCylinders, MAGNET_LINK, SimConfig, SimError, Simulator};
+use crate::{ArmMode, LinkCylinders, MAGNET_LINK, SimConfig, SimError, Simulator};
 
 /// The kinematic rapier body of one arm link, placed from forward kinematics each substep.
 #[derive(Clone)]
@@ -136,6 +137,21 @@ fn world_with_floor_and_table(config: &SimConfig) -> PhysicsWorld {
     world
 }
 
+/// The colliders of one arm link, in the link frame (URDF collision shapes; cylinders as
+/// `config.link_cylinders` says, but the magnet tool's flat face, which touches the cube,
+/// always exact).
+pub(crate) fn link_shapes(link: &urdf_rs::Link, config: &SimConfig) -> Vec<ColliderBuilder> {
+    let cylinders = if link.name == MAGNET_LINK {
+        LinkCylinders::Exact
+    } else {
+        config.link_cylinders
+    };
+    link.collision
+        .iter()
+        .filter_map(|c| collider_for(&c.geometry, &urdf_pose(&c.origin), cylinders))
+        .collect()
+}
+
 /// Arm links: kinematic bodies carrying the URDF collision shapes, placed at `q0`.
 fn insert_arm_links(
     world: &mut PhysicsWorld,
@@ -150,19 +166,7 @@ fn insert_arm_links(
         let Some(link) = robot.links.iter().find(|l| &l.name == name) else {
             continue;
         };
-        let shapes: Vec<ColliderBuilder> = link
-            .collision
-            .iter()
-            .filter_map(|c| {
-                // The tool's flat face is what touches the cube: always exact.
-                let cylinders = if link.name == MAGNET_LINK {
-                    LinkCylinders::Exact
-                } else {
-                    config.link_cylinders
-                };
-                collider_for(&c.geometry, &urdf_pose(&c.origin), cylinders)
-            })
-            .collect();
+        let shapes = link_shapes(link, config);
         if shapes.is_empty() {
             continue;
         }
@@ -199,15 +203,19 @@ impl Simulator {
         let model = ArmModel::from_robot(robot, "<arm URDF>")?;
         let mut world = world_with_floor_and_table(&config);
         let q0 = config.home;
-        let links = insert_arm_links(&mut world, robot, &model, &config, &q0)?;
+        let limits = ServoLimits::from_urdf(robot, &model, &config, &q0)?;
+        let (links, dynamic) = match config.arm {
+            ArmMode::Kinematic => (
+                insert_arm_links(&mut world, robot, &model, &config, &q0)?,
+                None,
+            ),
+            ArmMode::Dynamic => {
+                let arm =
+                    insert_dynamic_arm(&mut world, robot, &model, &config, &limits.joint_inertia)?;
+                (Vec::new(), Some(arm))
+            }
+        };
         let cube = insert_cube(&mut world, &config);
-        let ServoLimits {
-            accel_limit,
-            joint_inertia,
-            velocity_limit,
-            lower,
-            upper,
-        } = ServoLimits::from_urdf(robot, &model, &config, &q0)?;
         let ef = model.ef_pose(&q0)?;
         let rng = StdRng::seed_from_u64(config.seed);
         let mut sim = Self {
@@ -219,11 +227,8 @@ impl Simulator {
             q: q0,
             qd: [0.0; ARM_DOF],
             effort: [0.0; ARM_DOF],
-            accel_limit,
-            joint_inertia,
-            velocity_limit,
-            lower,
-            upper,
+            limits,
+            dynamic,
             ef,
             magnet_on: false,
             hold_offset: None,
@@ -243,7 +248,10 @@ impl Simulator {
         self.effort = [0.0; ARM_DOF];
         self.magnet_on = false;
         self.hold_offset = None;
-        self.place_arm(true);
+        match self.dynamic.is_some() {
+            false => self.place_arm(true),
+            true => self.teleport_dynamic_arm(&self.config.home.clone()),
+        }
         let [cx, cy] = self.config.table_center;
         let [hx, hy] = self.config.table_half_extents;
         let m = self.config.spawn_margin;

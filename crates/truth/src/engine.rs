@@ -194,6 +194,7 @@ fn simulator_config(trace: &Trace) -> SimConfig {
     SimConfig {
         seed: sim_seed(trace.seed),
         velocity_scale: trace.velocity_scale,
+        arm: trace.arm,
         ..SimConfig::default()
     }
 }

@@ -8,6 +8,7 @@ use causal_arm_bag::BagReader;
 use causal_arm_msgs::msg::Action;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_protocol::{Command, Experiment, bag_keys, ns_from_time, topics};
+use causal_arm_sim::ArmMode;
 
 use crate::TruthError;
 
@@ -35,6 +36,8 @@ pub struct Trace {
     pub seed: u64,
     /// Scale of the URDF joint velocity limits the run used.
     pub velocity_scale: f64,
+    /// How the run's simulator moved the arm.
+    pub arm: ArmMode,
     /// Every step, in stamp order.
     pub steps: Vec<TraceStep>,
 }
@@ -83,6 +86,10 @@ impl Trace {
         }
         let seed = custom(bag, &data, bag_keys::SEED)?;
         let velocity_scale = custom(bag, &data, bag_keys::VELOCITY_SCALE)?;
+        let arm = match data.get(bag_keys::ARM) {
+            None => ArmMode::Kinematic, // written before the dynamic arm existed
+            Some(_) => custom(bag, &data, bag_keys::ARM)?,
+        };
         let mut theta: BTreeMap<u64, [f64; 7]> = BTreeMap::new();
         let mut actions: BTreeMap<u64, Action> = BTreeMap::new();
         for raw in reader.messages() {
@@ -138,6 +145,7 @@ impl Trace {
             experiment,
             seed,
             velocity_scale,
+            arm,
             steps,
         })
     }

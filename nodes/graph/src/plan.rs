@@ -64,6 +64,7 @@ impl RunParams {
             GenerateOptions::new(experiment, plan, params.integer("seed") as u64, out);
         options.exp1.sigma = params.double("sigma");
         options.sim.velocity_scale = params.double("velocity_scale");
+        options.sim.arm = params.string("arm").parse().map_err(anyhow::Error::msg)?;
         options.exp2.move_while_switching = params.bool("move_while_switching");
         options.start_step = params.integer("start_step") as u64;
         let (index, count) = (params.integer("shard_index"), params.integer("shard_count"));
@@ -95,6 +96,7 @@ impl RunParams {
             format!("seed:={}", options.seed),
             format!("sigma:={:?}", options.exp1.sigma),
             format!("velocity_scale:={:?}", options.sim.velocity_scale),
+            format!("arm:={}", options.sim.arm),
             format!(
                 "move_while_switching:={}",
                 options.exp2.move_while_switching

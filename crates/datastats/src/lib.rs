@@ -1,0 +1,242 @@
+//! Physical statistics of a dataset: how far the joints were told to move and how far they
+//! did, how deep the arm's links went into the table, how often the cube lay on the floor,
+//! and how often switching the magnet on caught the cube.
+//!
+//! They compare the simulator's arm modes (kinematic, dynamic) on their data, which the
+//! learned models and the paper's figures then inherit. Every statistic is read from the
+//! dataset's rows and the simulator's own link shapes, so both modes are judged alike.
+
+use causal_arm_dataset::{Dataset, state_names};
+use causal_arm_protocol::Experiment;
+use causal_arm_protocol::{ARM_DOF, Scene};
+use causal_arm_sim::{SimConfig, TableProbe};
+use serde::Serialize;
+
+/// Penetration above which a state counts as "in the table", m (contact slop is below it).
+pub const PENETRATION_COUNTED: f64 = 1e-3;
+
+/// Why statistics could not be computed.
+#[derive(Debug, thiserror::Error)]
+pub enum StatsError {
+    /// The dataset lacks a feature the statistics read.
+    #[error("the dataset has no state feature {0:?}")]
+    MissingFeature(String),
+    /// The table probe could not be built or placed.
+    #[error(transparent)]
+    Sim(#[from] causal_arm_sim::SimError),
+    /// No rows to describe.
+    #[error("the dataset has no transitions")]
+    Empty,
+}
+
+/// The statistics of one dataset.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct DataStats {
+    /// Experiment of the rows.
+    pub experiment: String,
+    /// Transitions described.
+    pub transitions: usize,
+    /// Standard deviation of the commanded joint change a(t) = target − θ(t), per joint, rad.
+    pub commanded_spread: [f64; ARM_DOF],
+    /// Standard deviation of the realized joint change θ(t+1) − θ(t), per joint, rad.
+    pub realized_spread: [f64; ARM_DOF],
+    /// Realized ÷ commanded spread, mean over joints: how much of a command the arm did.
+    pub realized_share: f64,
+    /// Share of states with some link more than [`PENETRATION_COUNTED`] into the table.
+    pub in_table_share: f64,
+    /// Deepest any link went into the table, m.
+    pub penetration_max: f64,
+    /// 99.9th percentile of the penetration over states, m.
+    pub penetration_p999: f64,
+    /// Exp 2: share of states with the cube below the table top (fallen to the floor).
+    pub cube_on_floor_share: Option<f64>,
+    /// Exp 2: switch-ons of the magnet (a_mgt = +1 while off).
+    pub switch_ons: Option<usize>,
+    /// Exp 2: share of switch-ons after which the magnet held the cube before it was
+    /// switched off again (or the episode ended).
+    pub grasp_success: Option<f64>,
+}
+
+/// Column of the state feature `name`.
+fn feature(names: &[String], name: &str) -> Result<usize, StatsError> {
+    names
+        .iter()
+        .position(|n| n == name)
+        .ok_or_else(|| StatsError::MissingFeature(name.to_owned()))
+}
+
+/// Population standard deviation of `values`.
+fn std_dev(values: impl Iterator<Item = f64> + Clone) -> f64 {
+    let n = values.clone().count().max(1) as f64;
+    let mean = values.clone().sum::<f64>() / n;
+    (values.map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt()
+}
+
+/// The statistics of `data`, whose actions must be the commanded ones
+/// (`ActionSource::Commanded`), in the scene of `config`.
+pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsError> {
+    let rows = data.rows();
+    if rows == 0 {
+        return Err(StatsError::Empty);
+    }
+    let names = state_names(data.experiment);
+    let theta: Vec<usize> = (0..ARM_DOF)
+        .map(|i| feature(&names, &format!("theta{i}")))
+        .collect::<Result<_, _>>()?;
+    let commanded_spread: [f64; ARM_DOF] =
+        std::array::from_fn(|j| std_dev((0..rows).map(move |r| data.action(r)[j] as f64)));
+    let realized_spread: [f64; ARM_DOF] = std::array::from_fn(|j| {
+        let t = theta[j];
+        std_dev((0..rows).map(move |r| (data.next_state(r)[t] - data.state(r)[t]) as f64))
+    });
+    let realized_share = (0..ARM_DOF)
+        .map(|j| realized_spread[j] / commanded_spread[j].max(1e-12))
+        .sum::<f64>()
+        / ARM_DOF as f64;
+    let probe = TableProbe::new(config)?;
+    let mut depths = Vec::with_capacity(rows);
+    for r in 0..rows {
+        let s = data.state(r);
+        let q: [f64; ARM_DOF] = std::array::from_fn(|j| s[theta[j]] as f64);
+        depths.push(probe.penetration(&q)?);
+    }
+    let in_table = depths.iter().filter(|&&d| d > PENETRATION_COUNTED).count();
+    depths.sort_by(f64::total_cmp);
+    let p999 = depths[((rows as f64 * 0.999) as usize).min(rows - 1)];
+    let mut stats = DataStats {
+        experiment: data.experiment.to_string(),
+        transitions: rows,
+        commanded_spread,
+        realized_spread,
+        realized_share,
+        in_table_share: in_table as f64 / rows as f64,
+        penetration_max: depths[rows - 1],
+        penetration_p999: p999,
+        cube_on_floor_share: None,
+        switch_ons: None,
+        grasp_success: None,
+    };
+    if data.experiment == Experiment::Exp2 {
+        exp2_stats(data, &names, &config.scene(), &mut stats)?;
+    }
+    Ok(stats)
+}
+
+/// The cube and magnet statistics of an exp 2 dataset.
+fn exp2_stats(
+    data: &Dataset,
+    names: &[String],
+    scene: &Scene,
+    stats: &mut DataStats,
+) -> Result<(), StatsError> {
+    let rows = data.rows();
+    let o_z = feature(names, "o_z")?;
+    let mgt = feature(names, "mgt")?;
+    let on_floor = (0..rows)
+        .filter(|&r| cube_on_floor(data.state(r)[o_z] as f64, scene))
+        .count();
+    stats.cube_on_floor_share = Some(on_floor as f64 / rows as f64);
+    let magnet_action = ARM_DOF; // a_mgt follows the seven joint deltas
+    let (mut switch_ons, mut caught) = (0, 0);
+    for r in 0..rows {
+        let off = data.state(r)[mgt] < 0.5;
+        if off && data.action(r)[magnet_action] > 0.5 {
+            switch_ons += 1;
+            caught += held_before_switch_off(data, r, magnet_action) as usize;
+        }
+    }
+    stats.switch_ons = Some(switch_ons);
+    stats.grasp_success = Some(caught as f64 / switch_ons.max(1) as f64);
+    Ok(())
+}
+
+/// Whether, after the magnet was switched on at row `on`, it held the cube in some state
+/// before it was switched off again or the episode ended.
+fn held_before_switch_off(data: &Dataset, on: usize, magnet_action: usize) -> bool {
+    for k in on + 1..data.rows() {
+        if data.episodes[k] != data.episodes[on] {
+            return false;
+        }
+        if data.holding[k] != 0 {
+            return true;
+        }
+        if data.action(k)[magnet_action] < -0.5 {
+            return false;
+        }
+    }
+    false
+}
+
+/// The cube (centre height `z`) has fallen off: it lies below the table top.
+pub fn cube_on_floor(z: f64, scene: &Scene) -> bool {
+    z < scene.table_top_z - scene.cube_size / 2.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use causal_arm_dataset::ActionSource;
+
+    /// Two exp 2 rows by hand: a switch-on that catches the cube, then the cube on the floor.
+    fn two_rows() -> Dataset {
+        let names = state_names(Experiment::Exp2);
+        let mut data = Dataset::empty(Experiment::Exp2, ActionSource::Commanded);
+        let home = SimConfig::default().home;
+        let state = |o_z: f32, mgt: f32, joint0: f32| -> Vec<f32> {
+            names
+                .iter()
+                .map(|n| match n.as_str() {
+                    "o_z" => o_z,
+                    "mgt" => mgt,
+                    "theta0" => joint0,
+                    n if n.starts_with("theta") => home[n[5..].parse::<usize>().unwrap()] as f32,
+                    _ => 0.0,
+                })
+                .collect()
+        };
+        let rows = [
+            (
+                state(0.225, 0.0, 0.0),
+                [0.2f32, 0., 0., 0., 0., 0., 0., 1.],
+                state(0.225, 1.0, 0.1),
+                0,
+            ),
+            (
+                state(0.025, 1.0, 0.1),
+                [0.0, 0., 0., 0., 0., 0., 0., 0.],
+                state(0.025, 1.0, 0.1),
+                1,
+            ),
+        ];
+        for (s, a, next, holding) in rows {
+            data.states.extend(s);
+            data.actions.extend(a);
+            data.next_states.extend(next);
+            data.episodes.push(0);
+            data.holding.push(holding);
+            data.steps.push(0);
+            data.stamps_ns.push(0);
+        }
+        data
+    }
+
+    #[test]
+    fn statistics_of_hand_made_rows() {
+        let stats = describe(&two_rows(), &SimConfig::default()).unwrap();
+        assert_eq!(stats.transitions, 2);
+        assert!((stats.commanded_spread[0] - 0.1).abs() < 1e-6);
+        assert!((stats.realized_spread[0] - 0.05).abs() < 1e-6);
+        assert_eq!(stats.cube_on_floor_share, Some(0.5));
+        assert_eq!(stats.switch_ons, Some(1));
+        assert_eq!(stats.grasp_success, Some(1.0));
+        assert_eq!(stats.in_table_share, 0.0, "home is above the table");
+    }
+
+    #[test]
+    fn the_cube_is_on_the_floor_only_below_the_table_top() {
+        let scene = Scene::default();
+        assert!(!cube_on_floor(0.225, &scene));
+        assert!(!cube_on_floor(0.30, &scene));
+        assert!(cube_on_floor(0.025, &scene));
+    }
+}

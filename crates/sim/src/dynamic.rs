@@ -1,0 +1,372 @@
+//! The dynamic arm (`ArmMode::Dynamic`): a rapier multibody built from the URDF's links,
+//! masses and inertias, moved by force-limited joint position motors.
+//!
+//! The motors track the servo's reference, the same velocity- and acceleration-limited
+//! path to the command that the kinematic arm follows exactly. Here gravity acts on the
+//! links. The arm collides with the table, the floor, the cube and its own non-adjacent
+//! links. A motor's torque never exceeds the URDF effort limit, so an arm that meets the
+//! table stalls on it instead of entering it. The magnet holds the cube with a fixed
+//! joint instead of placing it.
+
+use ::nalgebra::{Isometry3, Matrix3, Point3, UnitQuaternion, Vector3};
+use causal_arm_kinematics::ArmModel;
+use causal_arm_protocol::ARM_DOF;
+use rapier3d::math::{Matrix, Vector};
+use rapier3d::prelude::{
+    FixedJointBuilder, GenericJointBuilder, ImpulseJointHandle, JointAxesMask, JointAxis,
+    MassProperties, MotorModel, MultibodyJointHandle, PhysicsWorld, RigidBodyBuilder,
+    RigidBodyHandle,
+};
+
+use crate::world::{from_pose, link_shapes, to_pose, urdf_pose};
+use crate::{SimConfig, SimError, Simulator};
+
+/// The state of the dynamic arm beside the rapier world (handles, gains, reference, grip).
+#[derive(Clone)]
+pub(crate) struct DynamicArm {
+    /// The multibody joint of each actuated joint, in joint order.
+    joints: [MultibodyJointHandle; ARM_DOF],
+    /// The body of the chain's last body link (the magnet); the gripped cube is fixed to it.
+    tool_body: RigidBodyHandle,
+    /// Motor stiffness of each joint, N m/rad.
+    stiffness: [f64; ARM_DOF],
+    /// Motor damping of each joint, N m s/rad.
+    damping: [f64; ARM_DOF],
+    /// Effort limit of each joint (URDF), N m.
+    effort_limit: [f64; ARM_DOF],
+    /// Where the motors are told to be: the servo's path toward the command.
+    pub(crate) reference: [f64; ARM_DOF],
+    /// The reference's velocity, rad/s.
+    pub(crate) reference_velocity: [f64; ARM_DOF],
+    /// The fixed joint that holds the cube while the magnet grips it.
+    grip: Option<ImpulseJointHandle>,
+}
+
+/// Motor gains of one joint that moves `inertia`: a critically damped spring of natural
+/// frequency `config.motor_frequency`.
+fn motor_gains(inertia: f64, config: &SimConfig) -> (f64, f64) {
+    let omega = 2.0 * std::f64::consts::PI * config.motor_frequency;
+    let inertia = inertia.max(1e-3);
+    (inertia * omega * omega, 2.0 * inertia * omega)
+}
+
+/// Mass properties of a URDF link in its own frame (centre of mass and full inertia tensor).
+fn link_mass_properties(link: &urdf_rs::Link) -> MassProperties {
+    let inertial = &link.inertial;
+    let frame = urdf_pose(&inertial.origin);
+    let i = &inertial.inertia;
+    let local = Matrix3::new(
+        i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz,
+    );
+    let r = frame.rotation.to_rotation_matrix();
+    let tensor = r.matrix() * local * r.matrix().transpose();
+    let col = |c: usize| {
+        Vector::new(
+            tensor[(0, c)] as f32,
+            tensor[(1, c)] as f32,
+            tensor[(2, c)] as f32,
+        )
+    };
+    let com = frame.translation.vector;
+    MassProperties::with_inertia_matrix(
+        Vector::new(com.x as f32, com.y as f32, com.z as f32),
+        inertial.mass.value as f32,
+        Matrix::from_cols(col(0), col(1), col(2)),
+    )
+}
+
+/// The rotation that takes rapier's revolute axis (x) to the URDF joint axis.
+fn align_x_to(axis: &Vector3<f64>) -> UnitQuaternion<f64> {
+    UnitQuaternion::rotation_between(&Vector3::x(), axis).unwrap_or_else(|| {
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI)
+    })
+}
+
+/// Inserts the arm as a multibody rooted at the fixed base link, at the zero configuration.
+/// The chain's last link, when it has no collision shape (the `ef` frame), gets no body.
+pub(crate) fn insert_dynamic_arm(
+    world: &mut PhysicsWorld,
+    robot: &urdf_rs::Robot,
+    model: &ArmModel,
+    config: &SimConfig,
+    joint_inertia: &[f64; ARM_DOF],
+) -> Result<DynamicArm, SimError> {
+    let zero = [0.0; ARM_DOF];
+    let poses = model.link_poses(&zero)?;
+    let mut bodies: Vec<(&str, RigidBodyHandle)> = Vec::new();
+    let mut joints = Vec::new();
+    let limits = model.limits();
+    for (index, (name, pose)) in poses.iter().enumerate() {
+        let link = robot
+            .links
+            .iter()
+            .find(|l| &l.name == name)
+            .ok_or_else(|| SimError::Config(format!("URDF has no link {name:?}")))?;
+        let shapes = link_shapes(link, config);
+        if shapes.is_empty() && index + 1 == poses.len() {
+            continue; // the tool frame (ef): its nominal mass (1 g) is left out
+        }
+        let builder = match index {
+            0 => RigidBodyBuilder::fixed(),
+            _ => RigidBodyBuilder::dynamic()
+                .additional_mass_properties(link_mass_properties(link))
+                .can_sleep(false),
+        };
+        let body = world.insert_body(builder.pose(to_pose(pose)));
+        for shape in shapes {
+            world.colliders.insert_with_parent(
+                shape.density(0.0).friction(config.friction as f32),
+                body,
+                &mut world.bodies,
+            );
+        }
+        if index > 0 {
+            let joint = robot
+                .joints
+                .iter()
+                .find(|j| j.child.link == *name)
+                .ok_or_else(|| SimError::Config(format!("URDF has no joint above {name:?}")))?;
+            let parent = bodies
+                .iter()
+                .find(|(n, _)| *n == joint.parent.link)
+                .map(|(_, b)| *b)
+                .ok_or_else(|| {
+                    SimError::Config(format!(
+                        "dynamic arm: the parent {:?} of {name:?} has no body",
+                        joint.parent.link
+                    ))
+                })?;
+            let origin = urdf_pose(&joint.origin);
+            let handle = match joint.joint_type {
+                urdf_rs::JointType::Revolute => {
+                    let i = joints.len();
+                    let [x, y, z] = *joint.axis.xyz;
+                    let align = Isometry3::from_parts(
+                        Default::default(),
+                        align_x_to(&Vector3::new(x, y, z).normalize()),
+                    );
+                    let (stiffness, damping) = motor_gains(joint_inertia[i], config);
+                    let data = GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
+                        .local_frame1(to_pose(&(origin * align)))
+                        .local_frame2(to_pose(&align))
+                        .limits(
+                            JointAxis::AngX,
+                            [limits[i].lower as f32, limits[i].upper as f32],
+                        )
+                        .motor_model(JointAxis::AngX, MotorModel::ForceBased)
+                        .motor_position(JointAxis::AngX, 0.0, stiffness as f32, damping as f32)
+                        .motor_max_force(JointAxis::AngX, limits[i].effort as f32)
+                        .contacts_enabled(false)
+                        .build();
+                    let handle = world.multibody_joints.insert(parent, body, data, true);
+                    joints.push((handle, stiffness, damping, limits[i].effort));
+                    handle
+                }
+                _ => world.multibody_joints.insert(
+                    parent,
+                    body,
+                    FixedJointBuilder::new()
+                        .local_frame1(to_pose(&origin))
+                        .contacts_enabled(false),
+                    true,
+                ),
+            };
+            handle.ok_or_else(|| {
+                SimError::Config(format!("rapier refused the joint above {name:?}"))
+            })?;
+        }
+        bodies.push((name, body));
+    }
+    if joints.len() != ARM_DOF {
+        return Err(SimError::Config(format!(
+            "dynamic arm: expected {ARM_DOF} revolute joints, built {}",
+            joints.len()
+        )));
+    }
+    let tool_body = bodies.last().map(|(_, b)| *b).expect("the base has a body");
+    Ok(DynamicArm {
+        joints: std::array::from_fn(|i| joints[i].0.expect("checked above")),
+        tool_body,
+        stiffness: std::array::from_fn(|i| joints[i].1),
+        damping: std::array::from_fn(|i| joints[i].2),
+        effort_limit: std::array::from_fn(|i| joints[i].3),
+        reference: zero,
+        reference_velocity: zero,
+        grip: None,
+    })
+}
+
+impl Simulator {
+    /// The dynamic arm, if this simulator has one.
+    fn dynamic_arm(&self) -> Option<&DynamicArm> {
+        self.dynamic.as_ref()
+    }
+
+    /// Puts the dynamic arm at rest at `q` (teleports it: episode start), its reference too.
+    pub(crate) fn teleport_dynamic_arm(&mut self, q: &[f64; ARM_DOF]) {
+        let Some(arm) = self.dynamic.as_mut() else {
+            return;
+        };
+        if let Some(grip) = arm.grip.take() {
+            self.world.impulse_joints.remove(grip, true);
+        }
+        arm.reference = *q;
+        arm.reference_velocity = [0.0; ARM_DOF];
+        let Some((multibody, _)) = self.world.multibody_joints.get_mut(arm.joints[0]) else {
+            return;
+        };
+        let mut displacement = vec![0.0f32; multibody.ndofs()];
+        for (i, handle) in arm.joints.iter().enumerate() {
+            // Every joint of the arm is in the one multibody; its link holds its coordinate.
+            let Some((multibody, link_id)) = self.world.multibody_joints.get(*handle) else {
+                continue;
+            };
+            let Some(link) = multibody.link(link_id) else {
+                continue;
+            };
+            let current = link.joint.coords()[3];
+            displacement[link.assembly_id()] = q[i] as f32 - current;
+        }
+        let Some((multibody, _)) = self.world.multibody_joints.get_mut(arm.joints[0]) else {
+            return;
+        };
+        multibody.apply_displacements(&displacement);
+        multibody.generalized_velocity_mut().fill(0.0);
+        multibody.forward_kinematics(&self.world.bodies, false);
+        multibody.update_rigid_bodies(&mut self.world.bodies, false);
+        self.read_dynamic_joints();
+    }
+
+    /// Moves the reference one substep toward `target` and tells the motors to follow it.
+    pub(crate) fn drive_dynamic_arm(&mut self, target: &[f64; ARM_DOF], dt: f64) {
+        let Some(arm) = self.dynamic.as_mut() else {
+            return;
+        };
+        let mut reference = arm.reference;
+        let mut velocity = arm.reference_velocity;
+        let mut unused_effort = [0.0; ARM_DOF];
+        self.servo_limits().step(
+            self.config.servo_gain,
+            target,
+            &mut reference,
+            &mut velocity,
+            &mut unused_effort,
+            dt,
+        );
+        let Some(arm) = self.dynamic.as_mut() else {
+            return;
+        };
+        arm.reference = reference;
+        arm.reference_velocity = velocity;
+        for (i, handle) in arm.joints.iter().enumerate() {
+            let link = self
+                .world
+                .multibody_joints
+                .get_mut(*handle)
+                .and_then(|(multibody, link_id)| multibody.link_mut(link_id));
+            if let Some(link) = link {
+                link.joint.data.set_motor(
+                    JointAxis::AngX,
+                    reference[i] as f32,
+                    velocity[i] as f32,
+                    arm.stiffness[i] as f32,
+                    arm.damping[i] as f32,
+                );
+            }
+        }
+    }
+
+    /// Reads the joint positions and velocities from the multibody, the effort from the
+    /// motor law (spring and damper toward the reference, clamped at the effort limit),
+    /// and the tool pose by forward kinematics.
+    pub(crate) fn read_dynamic_joints(&mut self) {
+        let Some(arm) = self.dynamic_arm() else {
+            return;
+        };
+        let mut q = self.q;
+        let mut qd = self.qd;
+        let mut effort = self.effort;
+        for (i, handle) in arm.joints.iter().enumerate() {
+            let Some((multibody, link_id)) = self.world.multibody_joints.get(*handle) else {
+                continue;
+            };
+            let Some(link) = multibody.link(link_id) else {
+                continue;
+            };
+            q[i] = link.joint.coords()[3] as f64;
+            qd[i] = multibody.generalized_velocity()[link.assembly_id()] as f64;
+            let torque = arm.stiffness[i] * (arm.reference[i] - q[i])
+                + arm.damping[i] * (arm.reference_velocity[i] - qd[i]);
+            effort[i] = torque.clamp(-arm.effort_limit[i], arm.effort_limit[i]);
+        }
+        self.q = q;
+        self.qd = qd;
+        self.effort = effort;
+        if let Ok(ef) = self.model.ef_pose(&self.q) {
+            self.ef = ef;
+        }
+    }
+
+    /// The magnet of the dynamic arm: on and near the cube, fixes the cube to the tool
+    /// body where it is; off, removes that joint (the cube keeps its velocity).
+    pub(crate) fn update_dynamic_magnet(&mut self) {
+        let Some(arm) = self.dynamic.as_ref() else {
+            return;
+        };
+        let (tool_body, grip) = (arm.tool_body, arm.grip);
+        match (self.magnet_on, grip) {
+            (true, None) => {
+                let Some(cube) = self
+                    .world
+                    .bodies
+                    .get(self.cube)
+                    .map(|b| from_pose(b.position()))
+                else {
+                    return;
+                };
+                if !self.cube_within_capture(&cube) {
+                    return;
+                }
+                let Some(tool) = self
+                    .world
+                    .bodies
+                    .get(tool_body)
+                    .map(|b| from_pose(b.position()))
+                else {
+                    return;
+                };
+                let joint = FixedJointBuilder::new()
+                    .local_frame1(to_pose(&(tool.inverse() * cube)))
+                    .contacts_enabled(false);
+                let handle = self
+                    .world
+                    .impulse_joints
+                    .insert(tool_body, self.cube, joint, true);
+                self.hold_offset = Some(self.ef.inverse() * cube);
+                if let Some(arm) = self.dynamic.as_mut() {
+                    arm.grip = Some(handle);
+                }
+            }
+            (false, Some(handle)) => {
+                self.world.impulse_joints.remove(handle, true);
+                self.hold_offset = None;
+                if let Some(arm) = self.dynamic.as_mut() {
+                    arm.grip = None;
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Whether the cube at `cube` is within the magnet's capture distance of the tip.
+    pub(crate) fn cube_within_capture(&self, cube: &Isometry3<f64>) -> bool {
+        let tip_local = cube.inverse_transform_point(&Point3::from(self.ef.translation.vector));
+        let h = self.config.cube_size / 2.0;
+        let outside = Vector3::new(
+            (tip_local.x.abs() - h).max(0.0),
+            (tip_local.y.abs() - h).max(0.0),
+            (tip_local.z.abs() - h).max(0.0),
+        );
+        outside.norm() <= self.config.capture_distance
+    }
+}

@@ -70,6 +70,14 @@ def bag_and_forward_model(run_cli, d, generate_args, train_args):
     assert r.returncode == 0, r.stderr
 
 
+def custom_data(bag: pathlib.Path) -> dict:
+    """The run settings a bag's metadata.yaml records (rosbag2 `custom_data`)."""
+    import yaml
+
+    info = yaml.safe_load((pathlib.Path(bag) / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    return info["custom_data"]
+
+
 def network_interfaces() -> list:
     """Interfaces of this process's network namespace (/proc/net/dev is per namespace;
     /sys/class/net is not, unless sysfs is remounted)."""

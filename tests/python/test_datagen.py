@@ -15,6 +15,8 @@ import pytest
 from mcap_ros2.reader import read_ros2_messages
 from rosbags.highlevel import AnyReader
 
+from conftest import custom_data
+
 STATE_TOPICS = ["/joint_states", "/end_effector/pose", "/object/pose", "/object/color", "/magnet/state",
                 "/clock", "/tf", "/scene/markers"]
 STEP_TOPICS = STATE_TOPICS + ["/babbler/action"]
@@ -151,6 +153,7 @@ def test_every_topic_carries_its_rihs01_type_hash_as_rosbags_computes_it(exp1_ba
     (["generate", "exp1", "--steps", "-5", "--out", "X"], "--steps must be a positive number, got -5"),
     (["generate", "exp2", "--episodes", "0", "--out", "X"], "--episodes must be a positive number"),
     (["generate", "exp1", "--profile", "huge", "--out", "X"], 'unknown profile "huge"'),
+    (["generate", "exp2", "--arm", "floppy", "--out", "X"], 'unknown arm mode "floppy"'),
 ])
 def test_bad_generate_arguments(run_cli, tmp_path, args, needle):
     args = [str(tmp_path / "out") if a == "X" else a for a in args]
@@ -196,7 +199,7 @@ def _canonical(bag):
     return {t: [(ts, norm(m)) for ts, m in msgs] for t, msgs in topics.items()}
 
 
-@pytest.mark.parametrize("flags", [[], ["--move-while-switching", "false"]])
+@pytest.mark.parametrize("flags", [[], ["--move-while-switching", "false"], ["--arm", "dynamic"]])
 def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, private_netns, flags):
     env = {"ROS_DOMAIN_ID": "17", "RUST_LOG": "warn"}
     dds = tmp_path / "dds"
@@ -207,6 +210,9 @@ def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, priv
     local = tmp_path / "local"
     r = run_cli("generate", "exp2", "--episodes", "1", "--seed", "8", *flags, "--out", local)
     assert r.returncode == 0, r.stderr
+    arm = "dynamic" if "dynamic" in flags else "kinematic"
+    for bag in [dds, local]:
+        assert custom_data(bag)["causal_arm.arm"] == arm, "the bag records how the arm moved"
     a, b = _canonical(dds), _canonical(local)
     assert a.keys() == b.keys()
     for topic in a:

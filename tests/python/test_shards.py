@@ -9,12 +9,9 @@ import pytest
 import yaml
 from rosbags.highlevel import AnyReader
 
+from conftest import custom_data
+
 SEED = 4
-
-
-def _custom_data(bag: pathlib.Path) -> dict:
-    info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-    return info["custom_data"]
 
 
 def _messages(bag: pathlib.Path) -> list:
@@ -37,18 +34,18 @@ def test_each_shard_is_a_complete_bag_naming_its_place_and_seed(shard_set):
     assert manifest["custom_data"]["causal_arm.shard_set_seed"] == str(SEED)
     steps = []
     for i, name in enumerate(manifest["shards"]):
-        data = _custom_data(shard_set / name)
+        data = custom_data(shard_set / name)
         assert data["causal_arm.shard"] == f"{i}/2"
         assert data["causal_arm.shard_set_seed"] == str(SEED)
         assert data["causal_arm.seed"] == manifest["custom_data"][f"causal_arm.seed.{name}"]
         joint_states = [m for m in _messages(shard_set / name) if m[0] == "/joint_states"]
         steps.append(len(joint_states))
     assert steps == [601, 600], "the shards share out the 1201 steps"
-    assert _custom_data(shard_set / "shard-0")["causal_arm.seed"] == str(SEED), "shard 0 keeps the run's seed"
+    assert custom_data(shard_set / "shard-0")["causal_arm.seed"] == str(SEED), "shard 0 keeps the run's seed"
 
 
 def test_a_shard_is_the_plain_run_of_its_seed_and_share(shard_set, run_cli, tmp_path):
-    seed = _custom_data(shard_set / "shard-1")["causal_arm.seed"]
+    seed = custom_data(shard_set / "shard-1")["causal_arm.seed"]
     r = run_cli("generate", "exp1", "--steps", "600", "--seed", seed, "--out", tmp_path / "plain")
     assert r.returncode == 0, r.stderr
     assert _messages(shard_set / "shard-1") == _messages(tmp_path / "plain")
@@ -114,7 +111,7 @@ def test_launch_shards_run_graphs_side_by_side_into_the_same_set(shard_set, run_
     assert yaml.safe_load((out / "shard_set.yaml").read_text()) == \
         yaml.safe_load((shard_set / "shard_set.yaml").read_text())
     for name in ["shard-0", "shard-1"]:
-        assert _custom_data(out / name) == _custom_data(shard_set / name)
+        assert custom_data(out / name) == custom_data(shard_set / name)
         assert _messages(out / name) == _messages(shard_set / name), name
 
 

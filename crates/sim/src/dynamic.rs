@@ -13,8 +13,8 @@ use causal_arm_kinematics::ArmModel;
 use causal_arm_protocol::ARM_DOF;
 use rapier3d::math::{Matrix, Vector};
 use rapier3d::prelude::{
-    FixedJointBuilder, GenericJointBuilder, ImpulseJointHandle, JointAxesMask, JointAxis,
-    MassProperties, MotorModel, MultibodyJointHandle, PhysicsWorld, RigidBodyBuilder,
+    FixedJointBuilder, GenericJoint, GenericJointBuilder, ImpulseJointHandle, JointAxesMask,
+    JointAxis, MassProperties, MotorModel, MultibodyJointHandle, PhysicsWorld, RigidBodyBuilder,
     RigidBodyHandle,
 };
 
@@ -82,6 +82,31 @@ fn align_x_to(axis: &Vector3<f64>) -> UnitQuaternion<f64> {
     })
 }
 
+/// The multibody joint of a URDF revolute joint: rapier's revolute axis (x of both joint
+/// frames) turned onto the URDF axis, the URDF position limits, and a position motor of
+/// the given gains whose torque is limited to the URDF effort.
+fn revolute_joint(
+    joint: &urdf_rs::Joint,
+    limits: &causal_arm_kinematics::JointLimits,
+    stiffness: f64,
+    damping: f64,
+) -> GenericJoint {
+    let [x, y, z] = *joint.axis.xyz;
+    let align = Isometry3::from_parts(
+        Default::default(),
+        align_x_to(&Vector3::new(x, y, z).normalize()),
+    );
+    GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
+        .local_frame1(to_pose(&(urdf_pose(&joint.origin) * align)))
+        .local_frame2(to_pose(&align))
+        .limits(JointAxis::AngX, [limits.lower as f32, limits.upper as f32])
+        .motor_model(JointAxis::AngX, MotorModel::ForceBased)
+        .motor_position(JointAxis::AngX, 0.0, stiffness as f32, damping as f32)
+        .motor_max_force(JointAxis::AngX, limits.effort as f32)
+        .contacts_enabled(false)
+        .build()
+}
+
 /// Inserts the arm as a multibody rooted at the fixed base link, at the zero configuration.
 /// The chain's last link, when it has no collision shape (the `ef` frame), gets no body.
 pub(crate) fn insert_dynamic_arm(
@@ -95,6 +120,7 @@ pub(crate) fn insert_dynamic_arm(
     let poses = model.link_poses(&zero)?;
     let mut bodies: Vec<(&str, RigidBodyHandle)> = Vec::new();
     let mut joints = Vec::new();
+    let mut handles = Vec::new();
     let limits = model.limits();
     for (index, (name, pose)) in poses.iter().enumerate() {
         let link = robot
@@ -136,41 +162,23 @@ pub(crate) fn insert_dynamic_arm(
                         joint.parent.link
                     ))
                 })?;
-            let origin = urdf_pose(&joint.origin);
-            let handle = match joint.joint_type {
+            let data = match joint.joint_type {
                 urdf_rs::JointType::Revolute => {
                     let i = joints.len();
-                    let [x, y, z] = *joint.axis.xyz;
-                    let align = Isometry3::from_parts(
-                        Default::default(),
-                        align_x_to(&Vector3::new(x, y, z).normalize()),
-                    );
                     let (stiffness, damping) = motor_gains(joint_inertia[i], config);
-                    let data = GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
-                        .local_frame1(to_pose(&(origin * align)))
-                        .local_frame2(to_pose(&align))
-                        .limits(
-                            JointAxis::AngX,
-                            [limits[i].lower as f32, limits[i].upper as f32],
-                        )
-                        .motor_model(JointAxis::AngX, MotorModel::ForceBased)
-                        .motor_position(JointAxis::AngX, 0.0, stiffness as f32, damping as f32)
-                        .motor_max_force(JointAxis::AngX, limits[i].effort as f32)
-                        .contacts_enabled(false)
-                        .build();
-                    let handle = world.multibody_joints.insert(parent, body, data, true);
-                    joints.push((handle, stiffness, damping, limits[i].effort));
-                    handle
+                    joints.push((stiffness, damping, limits[i].effort));
+                    revolute_joint(joint, &limits[i], stiffness, damping)
                 }
-                _ => world.multibody_joints.insert(
-                    parent,
-                    body,
-                    FixedJointBuilder::new()
-                        .local_frame1(to_pose(&origin))
-                        .contacts_enabled(false),
-                    true,
-                ),
+                _ => FixedJointBuilder::new()
+                    .local_frame1(to_pose(&urdf_pose(&joint.origin)))
+                    .contacts_enabled(false)
+                    .build()
+                    .into(),
             };
+            let handle = world.multibody_joints.insert(parent, body, data, true);
+            if let urdf_rs::JointType::Revolute = joint.joint_type {
+                handles.push(handle);
+            }
             handle.ok_or_else(|| {
                 SimError::Config(format!("rapier refused the joint above {name:?}"))
             })?;
@@ -185,11 +193,11 @@ pub(crate) fn insert_dynamic_arm(
     }
     let tool_body = bodies.last().map(|(_, b)| *b).expect("the base has a body");
     Ok(DynamicArm {
-        joints: std::array::from_fn(|i| joints[i].0.expect("checked above")),
+        joints: std::array::from_fn(|i| handles[i].expect("checked above")),
         tool_body,
-        stiffness: std::array::from_fn(|i| joints[i].1),
-        damping: std::array::from_fn(|i| joints[i].2),
-        effort_limit: std::array::from_fn(|i| joints[i].3),
+        stiffness: std::array::from_fn(|i| joints[i].0),
+        damping: std::array::from_fn(|i| joints[i].1),
+        effort_limit: std::array::from_fn(|i| joints[i].2),
         reference: zero,
         reference_velocity: zero,
         grip: None,

@@ -114,6 +114,27 @@ def test_exp2_cube_moves_only_while_held(exp2_bag):
     assert len({tuple(e[0]) for e in episodes}) == 4
 
 
+def test_bag_stats_describe_the_physics_against_the_bag_itself(run_cli, exp2_bag, tmp_path):
+    """`bag stats` (issue 18) checked against what rosbags reads: the cube-on-floor share
+    and the realized joint spread, recomputed here from the messages."""
+    r = run_cli("bag", "stats", exp2_bag)
+    assert r.returncode == 0, r.stderr
+    stats = json.loads(r.stdout)
+    topics = read_bag(exp2_bag)
+    z = np.array([m.pose.position.z for _, m in topics["/object/pose"]])
+    theta = np.array([m.position for _, m in topics["/joint_states"]]).reshape(4, 500, 7)
+    assert stats["transitions"] == 4 * 499
+    # Rows are s(t) of each transition: every step of an episode but its last.
+    on_floor = (z.reshape(4, 500)[:, :-1] < 0.2 - 0.025).mean()
+    assert stats["cube_on_floor_share"] == pytest.approx(on_floor)
+    realized = np.diff(theta, axis=1).reshape(-1, 7).std(axis=0)
+    assert stats["realized_spread"] == pytest.approx(realized.tolist(), rel=1e-4)
+    assert 0 <= stats["in_table_share"] <= 1 and stats["penetration_max"] >= 0
+    assert 0 < stats["grasp_success"] <= 1 and stats["switch_ons"] > 0
+    r = run_cli("bag", "stats", tmp_path / "missing")
+    assert r.returncode == 1 and "missing" in r.stderr, r.stderr
+
+
 def test_metadata_yaml_describes_the_bag(exp1_bag):
     import yaml
 

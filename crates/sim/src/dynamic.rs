@@ -18,7 +18,7 @@ use rapier3d::prelude::{
     RigidBodyHandle,
 };
 
-use crate::world::{from_pose, link_shapes, to_pose, urdf_pose};
+use crate::world::{link_shapes, to_pose, urdf_pose};
 use crate::{SimConfig, SimError, Simulator};
 
 /// The state of the dynamic arm beside the rapier world (handles, gains, reference, grip).
@@ -35,9 +35,9 @@ pub(crate) struct DynamicArm {
     /// Effort limit of each joint (URDF), N m.
     effort_limit: [f64; ARM_DOF],
     /// Where the motors are told to be: the servo's path toward the command.
-    pub(crate) reference: [f64; ARM_DOF],
+    reference: [f64; ARM_DOF],
     /// The reference's velocity, rad/s.
-    pub(crate) reference_velocity: [f64; ARM_DOF],
+    reference_velocity: [f64; ARM_DOF],
     /// The fixed joint that holds the cube while the magnet grips it.
     grip: Option<ImpulseJointHandle>,
 }
@@ -205,11 +205,6 @@ pub(crate) fn insert_dynamic_arm(
 }
 
 impl Simulator {
-    /// The dynamic arm, if this simulator has one.
-    fn dynamic_arm(&self) -> Option<&DynamicArm> {
-        self.dynamic.as_ref()
-    }
-
     /// Puts the dynamic arm at rest at `q` (teleports it: episode start), its reference too.
     pub(crate) fn teleport_dynamic_arm(&mut self, q: &[f64; ARM_DOF]) {
         let Some(arm) = self.dynamic.as_mut() else {
@@ -288,7 +283,7 @@ impl Simulator {
     /// motor law (spring and damper toward the reference, clamped at the effort limit),
     /// and the tool pose by forward kinematics.
     pub(crate) fn read_dynamic_joints(&mut self) {
-        let Some(arm) = self.dynamic_arm() else {
+        let Some(arm) = self.dynamic.as_ref() else {
             return;
         };
         let mut q = self.q;
@@ -324,23 +319,13 @@ impl Simulator {
         let (tool_body, grip) = (arm.tool_body, arm.grip);
         match (self.magnet_on, grip) {
             (true, None) => {
-                let Some(cube) = self
-                    .world
-                    .bodies
-                    .get(self.cube)
-                    .map(|b| from_pose(b.position()))
-                else {
+                let Some(cube) = self.body_pose(self.cube) else {
                     return;
                 };
                 if !self.cube_within_capture(&cube) {
                     return;
                 }
-                let Some(tool) = self
-                    .world
-                    .bodies
-                    .get(tool_body)
-                    .map(|b| from_pose(b.position()))
-                else {
+                let Some(tool) = self.body_pose(tool_body) else {
                     return;
                 };
                 let joint = FixedJointBuilder::new()

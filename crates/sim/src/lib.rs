@@ -185,10 +185,7 @@ impl Simulator {
     /// The current state.
     pub fn state(&self) -> SimState {
         let cube_pose = self
-            .world
-            .bodies
-            .get(self.cube)
-            .map(|b| from_pose(b.position()))
+            .body_pose(self.cube)
             .unwrap_or_else(Isometry3::identity);
         let step_duration_ns = self.config.dt * self.config.substeps as f64 * 1e9;
         SimState {
@@ -204,6 +201,11 @@ impl Simulator {
             magnet_on: self.magnet_on,
             holding: self.hold_offset.is_some(),
         }
+    }
+
+    /// The pose of one of the world's bodies (the cube, a link), if it exists.
+    fn body_pose(&self, body: RigidBodyHandle) -> Option<Isometry3<f64>> {
+        self.world.bodies.get(body).map(|b| from_pose(b.position()))
     }
 
     /// The arm model the simulator uses (for IK in the babbler and for names).

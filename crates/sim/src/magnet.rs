@@ -7,17 +7,12 @@ use rapier3d::math::Vector;
 use rapier3d::prelude::RigidBodyType;
 
 use crate::Simulator;
-use crate::world::{from_pose, to_pose};
+use crate::world::to_pose;
 
 impl Simulator {
     /// Grips, carries or releases the cube after the tip moved from `previous_ef`.
     pub(crate) fn update_magnet(&mut self, previous_ef: &Isometry3<f64>, dt: f64) {
-        let Some(cube) = self
-            .world
-            .bodies
-            .get(self.cube)
-            .map(|b| from_pose(b.position()))
-        else {
+        let Some(cube) = self.body_pose(self.cube) else {
             return;
         };
         let grip = match (self.magnet_on, self.hold_offset) {

@@ -1,7 +1,8 @@
 use super::*;
 use causal_arm_kinematics::{IkOptions, IkTarget};
 
-fn hold(sim: &mut Simulator, q: [f64; ARM_DOF], magnet: i8, steps: usize) -> SimState {
+/// Steps `sim` `steps` times with one command; returns the last state.
+pub(crate) fn hold(sim: &mut Simulator, q: [f64; ARM_DOF], magnet: i8, steps: usize) -> SimState {
     let mut state = sim.state();
     for _ in 0..steps {
         state = sim

@@ -3,6 +3,7 @@
 //! and is deterministic.
 
 use super::*;
+use crate::tests::hold;
 use causal_arm_kinematics::{IkOptions, IkTarget};
 
 fn dynamic(seed: u64) -> Simulator {
@@ -12,19 +13,6 @@ fn dynamic(seed: u64) -> Simulator {
         ..SimConfig::default()
     })
     .unwrap()
-}
-
-fn hold(sim: &mut Simulator, q: [f64; ARM_DOF], magnet: i8, steps: usize) -> SimState {
-    let mut state = sim.state();
-    for _ in 0..steps {
-        state = sim
-            .step(&Command {
-                joint_targets: q,
-                magnet,
-            })
-            .unwrap();
-    }
-    state
 }
 
 /// Joints that put the tool straight down over (x, y) at height z.

@@ -39,9 +39,9 @@ pub struct SimConfig {
     pub link_cylinders: LinkCylinders,
     /// How the arm moves: placed by forward kinematics, or a multibody moved by motors.
     pub arm: ArmMode,
-    /// Dynamic arm: natural frequency of each joint's motor (a critically damped spring
-    /// on the inertia the joint moves), Hz.
-    pub motor_frequency: f64,
+    /// Dynamic arm: the share of a joint's position error its motor's velocity target
+    /// closes per physics step, PyBullet's `positionGain` (myGym drives the arm with 0.7).
+    pub motor_position_gain: f64,
 }
 
 /// How the simulated arm moves.
@@ -99,7 +99,7 @@ impl Default for SimConfig {
             seed: 0,
             link_cylinders: LinkCylinders::Capsules,
             arm: ArmMode::Kinematic,
-            motor_frequency: 30.0,
+            motor_position_gain: 0.7,
         }
     }
 }
@@ -121,11 +121,15 @@ impl SimConfig {
             && self.substeps > 0
             && self.servo_gain > 0.0
             && self.velocity_scale > 0.0
-            && self.motor_frequency > 0.0)
+            && self.motor_position_gain > 0.0)
         {
             return Err(SimError::Config(format!(
-                "dt ({}), substeps ({}), servo_gain ({}), velocity_scale ({}) and motor_frequency ({}) must be positive",
-                self.dt, self.substeps, self.servo_gain, self.velocity_scale, self.motor_frequency
+                "dt ({}), substeps ({}), servo_gain ({}), velocity_scale ({}) and motor_position_gain ({}) must be positive",
+                self.dt,
+                self.substeps,
+                self.servo_gain,
+                self.velocity_scale,
+                self.motor_position_gain
             )));
         }
         Ok(())

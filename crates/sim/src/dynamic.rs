@@ -1,12 +1,15 @@
 //! The dynamic arm (`ArmMode::Dynamic`): a rapier multibody built from the URDF's links,
-//! masses and inertias, moved by force-limited joint position motors.
+//! masses and inertias, moved by joint motors limited in speed and torque by the URDF.
 //!
-//! The motors track the servo's reference, the same velocity- and acceleration-limited
-//! path to the command that the kinematic arm follows exactly. Here gravity acts on the
-//! links. The arm collides with the table, the floor, the cube and its own non-adjacent
-//! links. A motor's torque never exceeds the URDF effort limit, so an arm that meets the
-//! table stalls on it instead of entering it. The magnet holds the cube with a fixed
-//! joint instead of placing it.
+//! Each motor works as PyBullet's POSITION_CONTROL does: a velocity target that closes
+//! `motor_position_gain` of the position error per physics step, clamped to the URDF
+//! velocity limit, held by a velocity constraint whose torque is clamped to the URDF
+//! effort limit. The position it tracks is the servo's reference, the same velocity- and
+//! acceleration-limited path to the command that the kinematic arm follows exactly. Here
+//! gravity acts on the links. The arm collides with the table, the floor, the cube and
+//! its own non-adjacent links. An arm that meets the table stalls on it at its effort
+//! limits instead of entering it. The magnet holds the cube with a fixed joint instead of
+//! placing it.
 
 use ::nalgebra::{Isometry3, Matrix3, Point3, UnitQuaternion, Vector3};
 use causal_arm_kinematics::ArmModel;
@@ -18,6 +21,7 @@ use rapier3d::prelude::{
     RigidBodyHandle,
 };
 
+use crate::loads::ArmInertials;
 use crate::world::{link_shapes, to_pose, urdf_pose};
 use crate::{SimConfig, SimError, Simulator};
 
@@ -28,12 +32,14 @@ pub(crate) struct DynamicArm {
     joints: [MultibodyJointHandle; ARM_DOF],
     /// The body of the chain's last body link (the magnet); the gripped cube is fixed to it.
     tool_body: RigidBodyHandle,
-    /// Motor stiffness of each joint, N m/rad.
-    stiffness: [f64; ARM_DOF],
-    /// Motor damping of each joint, N m s/rad.
-    damping: [f64; ARM_DOF],
     /// Effort limit of each joint (URDF), N m.
     effort_limit: [f64; ARM_DOF],
+    /// The links' inertial data (the efforts the motors hold against gravity).
+    inertials: ArmInertials,
+    /// The velocity each motor was last told to hold, rad/s.
+    velocity_target: [f64; ARM_DOF],
+    /// The joint velocities before the last physics step, rad/s.
+    previous_velocity: [f64; ARM_DOF],
     /// Where the motors are told to be: the servo's path toward the command.
     reference: [f64; ARM_DOF],
     /// The reference's velocity, rad/s.
@@ -42,13 +48,14 @@ pub(crate) struct DynamicArm {
     grip: Option<ImpulseJointHandle>,
 }
 
-/// Motor gains of one joint that moves `inertia`: a critically damped spring of natural
-/// frequency `config.motor_frequency`.
-fn motor_gains(inertia: f64, config: &SimConfig) -> (f64, f64) {
-    let omega = 2.0 * std::f64::consts::PI * config.motor_frequency;
-    let inertia = inertia.max(1e-3);
-    (inertia * omega * omega, 2.0 * inertia * omega)
-}
+/// Damping of the motors' velocity constraint, N m s/rad: large enough to make it rigid
+/// (rapier softens it by 1 / (dt × damping)); the effort limit alone bounds the torque.
+const RIGID_VELOCITY_DAMPING: f32 = 1e9;
+
+/// A motor counts as saturated when the joint misses its velocity target by more than
+/// this, rad/s. The solver leaves an unsaturated motor up to ~5 mrad/s off its target
+/// (measured holding still); a stalled one misses by its whole target.
+const SATURATION_MISS: f64 = 0.05;
 
 /// Mass properties of a URDF link in its own frame (centre of mass and full inertia tensor).
 fn link_mass_properties(link: &urdf_rs::Link) -> MassProperties {
@@ -83,13 +90,11 @@ fn align_x_to(axis: &Vector3<f64>) -> UnitQuaternion<f64> {
 }
 
 /// The multibody joint of a URDF revolute joint: rapier's revolute axis (x of both joint
-/// frames) turned onto the URDF axis, the URDF position limits, and a position motor of
-/// the given gains whose torque is limited to the URDF effort.
+/// frames) turned onto the URDF axis, the URDF position limits, and a velocity motor
+/// (at rest until driven) whose torque is limited to the URDF effort.
 fn revolute_joint(
     joint: &urdf_rs::Joint,
     limits: &causal_arm_kinematics::JointLimits,
-    stiffness: f64,
-    damping: f64,
 ) -> GenericJoint {
     let [x, y, z] = *joint.axis.xyz;
     let align = Isometry3::from_parts(
@@ -101,7 +106,7 @@ fn revolute_joint(
         .local_frame2(to_pose(&align))
         .limits(JointAxis::AngX, [limits.lower as f32, limits.upper as f32])
         .motor_model(JointAxis::AngX, MotorModel::ForceBased)
-        .motor_position(JointAxis::AngX, 0.0, stiffness as f32, damping as f32)
+        .motor_velocity(JointAxis::AngX, 0.0, RIGID_VELOCITY_DAMPING)
         .motor_max_force(JointAxis::AngX, limits.effort as f32)
         .contacts_enabled(false)
         .build()
@@ -114,7 +119,6 @@ pub(crate) fn insert_dynamic_arm(
     robot: &urdf_rs::Robot,
     model: &ArmModel,
     config: &SimConfig,
-    joint_inertia: &[f64; ARM_DOF],
 ) -> Result<DynamicArm, SimError> {
     let zero = [0.0; ARM_DOF];
     let poses = model.link_poses(&zero)?;
@@ -165,9 +169,8 @@ pub(crate) fn insert_dynamic_arm(
             let data = match joint.joint_type {
                 urdf_rs::JointType::Revolute => {
                     let i = joints.len();
-                    let (stiffness, damping) = motor_gains(joint_inertia[i], config);
-                    joints.push((stiffness, damping, limits[i].effort));
-                    revolute_joint(joint, &limits[i], stiffness, damping)
+                    joints.push(limits[i].effort);
+                    revolute_joint(joint, &limits[i])
                 }
                 _ => FixedJointBuilder::new()
                     .local_frame1(to_pose(&urdf_pose(&joint.origin)))
@@ -195,9 +198,10 @@ pub(crate) fn insert_dynamic_arm(
     Ok(DynamicArm {
         joints: std::array::from_fn(|i| handles[i].expect("checked above")),
         tool_body,
-        stiffness: std::array::from_fn(|i| joints[i].0),
-        damping: std::array::from_fn(|i| joints[i].1),
-        effort_limit: std::array::from_fn(|i| joints[i].2),
+        effort_limit: std::array::from_fn(|i| joints[i]),
+        inertials: ArmInertials::from_urdf(robot, model)?,
+        velocity_target: zero,
+        previous_velocity: zero,
         reference: zero,
         reference_velocity: zero,
         grip: None,
@@ -215,6 +219,8 @@ impl Simulator {
         }
         arm.reference = *q;
         arm.reference_velocity = [0.0; ARM_DOF];
+        arm.velocity_target = [0.0; ARM_DOF];
+        arm.previous_velocity = [0.0; ARM_DOF];
         let Some((multibody, _)) = self.world.multibody_joints.get_mut(arm.joints[0]) else {
             return;
         };
@@ -240,15 +246,18 @@ impl Simulator {
         self.read_dynamic_joints();
     }
 
-    /// Moves the reference one substep toward `target` and tells the motors to follow it.
+    /// Moves the reference one substep toward `target` and gives each motor the velocity
+    /// that follows it: the reference's velocity plus `motor_position_gain` of the position
+    /// error per step, within the joint's velocity limit.
     pub(crate) fn drive_dynamic_arm(&mut self, target: &[f64; ARM_DOF], dt: f64) {
-        let Some(arm) = self.dynamic.as_mut() else {
+        let Some(arm) = self.dynamic.as_ref() else {
             return;
         };
         let mut reference = arm.reference;
         let mut velocity = arm.reference_velocity;
         let mut unused_effort = [0.0; ARM_DOF];
-        self.servo_limits().step(
+        let limits = self.servo_limits();
+        limits.step(
             self.config.servo_gain,
             target,
             &mut reference,
@@ -256,11 +265,18 @@ impl Simulator {
             &mut unused_effort,
             dt,
         );
+        let gain = self.config.motor_position_gain / dt;
+        let velocity_target: [f64; ARM_DOF] = std::array::from_fn(|i| {
+            let v_max = limits.velocity_limit[i];
+            (velocity[i] + gain * (reference[i] - self.q[i])).clamp(-v_max, v_max)
+        });
         let Some(arm) = self.dynamic.as_mut() else {
             return;
         };
         arm.reference = reference;
         arm.reference_velocity = velocity;
+        arm.velocity_target = velocity_target;
+        arm.previous_velocity = self.qd;
         for (i, handle) in arm.joints.iter().enumerate() {
             let link = self
                 .world
@@ -268,27 +284,23 @@ impl Simulator {
                 .get_mut(*handle)
                 .and_then(|(multibody, link_id)| multibody.link_mut(link_id));
             if let Some(link) = link {
-                link.joint.data.set_motor(
+                link.joint.data.set_motor_velocity(
                     JointAxis::AngX,
-                    reference[i] as f32,
-                    velocity[i] as f32,
-                    arm.stiffness[i] as f32,
-                    arm.damping[i] as f32,
+                    velocity_target[i] as f32,
+                    RIGID_VELOCITY_DAMPING,
                 );
             }
         }
     }
 
-    /// Reads the joint positions and velocities from the multibody, the effort from the
-    /// motor law (spring and damper toward the reference, clamped at the effort limit),
-    /// and the tool pose by forward kinematics.
+    /// Reads the joint positions and velocities from the multibody, the tool pose by
+    /// forward kinematics, and each motor's effort (`motor_efforts`).
     pub(crate) fn read_dynamic_joints(&mut self) {
         let Some(arm) = self.dynamic.as_ref() else {
             return;
         };
         let mut q = self.q;
         let mut qd = self.qd;
-        let mut effort = self.effort;
         for (i, handle) in arm.joints.iter().enumerate() {
             let Some((multibody, link_id)) = self.world.multibody_joints.get(*handle) else {
                 continue;
@@ -298,16 +310,47 @@ impl Simulator {
             };
             q[i] = link.joint.coords()[3] as f64;
             qd[i] = multibody.generalized_velocity()[link.assembly_id()] as f64;
-            let torque = arm.stiffness[i] * (arm.reference[i] - q[i])
-                + arm.damping[i] * (arm.reference_velocity[i] - qd[i]);
-            effort[i] = torque.clamp(-arm.effort_limit[i], arm.effort_limit[i]);
         }
         self.q = q;
         self.qd = qd;
-        self.effort = effort;
         if let Ok(ef) = self.model.ef_pose(&self.q) {
             self.ef = ef;
         }
+        if let Some(effort) = self.motor_efforts() {
+            self.effort = effort;
+        }
+    }
+
+    /// The torque of each motor over the last physics step. rapier does not report the
+    /// impulses of multibody motors, so it is worked out: a motor that missed its velocity
+    /// target was at its effort limit; one that met it held the links against gravity (and
+    /// the gripped cube) and gave the joint's own inertia its acceleration.
+    fn motor_efforts(&self) -> Option<[f64; ARM_DOF]> {
+        let arm = self.dynamic.as_ref()?;
+        let payload = arm.grip.and_then(|_| {
+            let cube = self.world.bodies.get(self.cube)?;
+            let com = cube.center_of_mass();
+            Some((
+                cube.mass() as f64,
+                Point3::new(com.x as f64, com.y as f64, com.z as f64),
+            ))
+        });
+        let g = self.world.gravity;
+        let gravity = Vector3::new(g.x as f64, g.y as f64, g.z as f64);
+        let holding = arm
+            .inertials
+            .holding_torques(&self.model, &self.q, &gravity, payload)
+            .ok()?;
+        let inertia = &self.servo_limits().joint_inertia;
+        Some(std::array::from_fn(|i| {
+            let limit = arm.effort_limit[i];
+            let miss = arm.velocity_target[i] - self.qd[i];
+            if miss.abs() > SATURATION_MISS {
+                return limit.copysign(miss);
+            }
+            let acceleration = (self.qd[i] - arm.previous_velocity[i]) / self.config.dt;
+            (holding[i] + inertia[i] * acceleration).clamp(-limit, limit)
+        }))
     }
 
     /// The magnet of the dynamic arm: on and near the cube, fixes the cube to the tool

@@ -25,6 +25,7 @@
 
 mod config;
 mod dynamic;
+mod loads;
 mod magnet;
 mod probe;
 mod servo;

@@ -1,11 +1,10 @@
 //! The arm's joint servos: each joint moves toward its target within the URDF velocity
 //! limit and an acceleration limit derived from the URDF effort limit.
 
-use ::nalgebra::Vector3;
 use causal_arm_kinematics::ArmModel;
 use causal_arm_protocol::ARM_DOF;
 
-use crate::world::urdf_pose;
+use crate::loads::ArmInertials;
 use crate::{SimConfig, SimError, Simulator};
 
 /// Per-joint limits of the servos, worked out once from the URDF when the world is built.
@@ -32,7 +31,7 @@ impl ServoLimits {
         q0: &[f64; ARM_DOF],
     ) -> Result<Self, SimError> {
         let limits = model.limits().to_vec();
-        let joint_inertia = Self::joint_inertias(robot, model, q0)?;
+        let joint_inertia = ArmInertials::from_urdf(robot, model)?.joint_inertias(model, q0)?;
         let mut accel_limit = [0.0; ARM_DOF];
         let mut velocity_limit = [0.0; ARM_DOF];
         let mut lower = [0.0; ARM_DOF];
@@ -50,61 +49,6 @@ impl ServoLimits {
             lower,
             upper,
         })
-    }
-
-    /// Moment of inertia each joint moves: distal link masses and inertias about the joint
-    /// axis at `q` (a constant approximation used to turn effort limits into acceleration limits).
-    fn joint_inertias(
-        robot: &urdf_rs::Robot,
-        model: &ArmModel,
-        q: &[f64; ARM_DOF],
-    ) -> Result<[f64; ARM_DOF], SimError> {
-        let poses = model.link_poses(q)?;
-        let jac_axes = model.jacobian(q)?;
-        let mut joint_frames = Vec::new();
-        // Joint i rotates every link after it; its axis passes through the frame of link i+1
-        // (for the iiwa chain the revolute joints are followed by their child links in order).
-        let mut revolute_children = Vec::new();
-        for (name, pose) in &poses {
-            if name.starts_with("iiwa_link_") && *name != "iiwa_link_0" {
-                revolute_children.push((*name, *pose));
-            }
-        }
-        for i in 0..ARM_DOF {
-            let axis: Vector3<f64> = jac_axes.fixed_view::<3, 1>(3, i).into_owned();
-            let origin = revolute_children
-                .get(i)
-                .map(|(_, p)| p.translation.vector)
-                .unwrap_or_default();
-            joint_frames.push((axis, origin));
-        }
-        let first_child_index: Vec<usize> = revolute_children
-            .iter()
-            .map(|(n, _)| poses.iter().position(|(m, _)| m == n).unwrap_or(0))
-            .collect();
-        let mut out = [0.0; ARM_DOF];
-        for (i, (axis, origin)) in joint_frames.iter().enumerate() {
-            let start = first_child_index.get(i).copied().unwrap_or(0);
-            let mut inertia = 0.0;
-            for (name, pose) in &poses[start..] {
-                let Some(link) = robot.links.iter().find(|l| &l.name == name) else {
-                    continue;
-                };
-                let m = link.inertial.mass.value;
-                let com_local = urdf_pose(&link.inertial.origin);
-                let com = pose * com_local;
-                let r = com.translation.vector - origin;
-                let d_perp = r - axis * axis.dot(&r);
-                let i = &link.inertial.inertia;
-                let local_axis = com.rotation.inverse() * axis;
-                let tensor = ::nalgebra::Matrix3::new(
-                    i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz,
-                );
-                inertia += local_axis.dot(&(tensor * local_axis)) + m * d_perp.norm_squared();
-            }
-            out[i] = inertia;
-        }
-        Ok(out)
     }
 }
 

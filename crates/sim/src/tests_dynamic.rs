@@ -73,8 +73,10 @@ fn the_probe_finds_no_penetration_at_home() {
     assert_eq!(probe.penetration(&config.home).unwrap(), 0.0);
 }
 
-/// Tolerance of the dynamic arm's tracking (motors at 30 Hz, measured 1.1 mrad of sag at
-/// home and 0.85 mrad / 0.8 mm at a target): 2 mrad per joint, 2 mm at the tool.
+/// Tolerance of the dynamic arm's tracking (velocity motors closing 0.7 of the error per
+/// physics step, measured 0.01 mrad of sag at home and 0.02 mrad / 0.01 mm at a target;
+/// the spring motors before them 1.1 mrad and 0.85 mrad / 0.8 mm): 0.2 mrad per joint,
+/// 0.2 mm at the tool.
 #[test]
 fn the_dynamic_arm_holds_home_and_tracks_a_target() {
     let mut sim = dynamic(1);
@@ -88,9 +90,9 @@ fn the_dynamic_arm_holds_home_and_tracks_a_target() {
         - sim.model().ef_pose(&target).unwrap().translation.vector)
         .norm();
     eprintln!("sag {sag:.5} rad, tracking error {error:.5} rad, ef {ef_error:.5} m");
-    assert!(sag < 0.002, "home sags {sag} rad under gravity");
-    assert!(error < 0.002, "{:?}", reached.joint_positions);
-    assert!(ef_error < 0.002, "tool {ef_error} m from target");
+    assert!(sag < 2e-4, "home sags {sag} rad under gravity");
+    assert!(error < 2e-4, "{:?}", reached.joint_positions);
+    assert!(ef_error < 2e-4, "tool {ef_error} m from target");
 }
 
 /// Commands the tool 5 cm into the table top over a free spot; returns every state and
@@ -191,7 +193,10 @@ fn the_dynamic_arm_picks_lifts_carries_and_places_the_cube() {
     let toward = (nalgebra::Vector2::new(cx - c.x, cy - c.y)).normalize() * 0.15;
     let (x, y) = (c.x + toward.x, c.y + toward.y);
     let over = down(&model, x, y, c.z + 0.15, Some(above));
-    let lower = down(&model, x, y, c.z + 0.03, Some(over));
+    // The magnet caught the cube as soon as it came within reach, above `touch`: set
+    // it down with the tool as high above the cube as it holds it, plus 2 mm.
+    let grip_height = lifted.ef_pose.translation.z - lifted.cube_pose.translation.z;
+    let lower = down(&model, x, y, c.z + grip_height + 0.002, Some(over));
     let carried = hold(&mut sim, over, 0, 80);
     assert!(carried.holding, "dropped while carrying");
     hold(&mut sim, lower, 0, 60);
@@ -260,4 +265,82 @@ fn a_dynamic_snapshot_steps_bit_for_bit_as_the_original() {
         .map(|c| copy.step(c).unwrap())
         .collect();
     assert_eq!(original, replayed);
+}
+
+/// Exp1's babbling: a new random target for every joint at every step, the servo
+/// reversing at full acceleration. The motors hold their URDF velocity limits (PyBullet's
+/// `maxVelocity`) to the solver's residual, but for the moments a motor is overpowered at
+/// its effort limit by the other joints' reactions (joint 1 14 % over, in 1 of 300
+/// steps, measured); before they did, joint 2 swung at up to 5.9× its limit.
+#[test]
+fn the_dynamic_arm_keeps_its_joints_within_their_velocity_limits() {
+    use rand::{Rng, SeedableRng};
+    let mut sim = dynamic(4);
+    let limits = sim.model().limits().to_vec();
+    let home = sim.config().home;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+    let (mut worst, mut over_while_free, mut samples_over) = (0.0f64, 0usize, 0usize);
+    let mut largest_step: f64 = 0.0;
+    let mut previous = sim.state().joint_positions;
+    for _ in 0..300 {
+        let command = Command {
+            joint_targets: std::array::from_fn(|j| {
+                (home[j] + rng.random_range(-0.5..0.5)).clamp(limits[j].lower, limits[j].upper)
+            }),
+            magnet: 0,
+        };
+        let state = sim.step(&command).unwrap();
+        for j in 0..ARM_DOF {
+            let ratio = state.joint_velocities[j].abs() / limits[j].velocity;
+            worst = worst.max(ratio);
+            if ratio > 1.01 {
+                samples_over += 1;
+            }
+            // Beyond the solver's residual (`SATURATION_MISS`) only a motor at its limit.
+            let excess = state.joint_velocities[j].abs() - limits[j].velocity;
+            let at_limit = state.joint_efforts[j].abs() >= limits[j].effort - 1e-9;
+            over_while_free += usize::from(excess > 0.05 && !at_limit);
+        }
+        largest_step = largest_step.max(max_abs_diff(&previous, &state.joint_positions));
+        previous = state.joint_positions;
+    }
+    eprintln!(
+        "fastest joint at {worst:.3}× its limit; {samples_over} of 2100 samples over 1.01×, \
+         {over_while_free} with the motor below its effort limit; largest step {largest_step:.4} rad"
+    );
+    assert!(worst <= 1.2, "a joint moved at {worst}× its velocity limit");
+    assert_eq!(
+        over_while_free, 0,
+        "an unsaturated motor let its joint overspeed"
+    );
+    assert!(
+        samples_over <= 21,
+        "{samples_over} of 2100 samples over the limit"
+    );
+    assert!(
+        largest_step > 0.05,
+        "the arm barely moved ({largest_step} rad per step)"
+    );
+}
+
+/// Held still, each motor's effort is the torque that holds the links against gravity:
+/// zero about the vertical first axis, the most at the shoulder (joint 2).
+#[test]
+fn a_still_dynamic_arm_reports_the_torques_that_hold_it_against_gravity() {
+    let mut sim = dynamic(1);
+    let pose = [0.0, 0.9, 0.0, -0.6, 0.0, 0.5, 0.0];
+    let held = hold(&mut sim, pose, 0, 60);
+    let e = held.joint_efforts;
+    eprintln!("efforts held still: {e:?}");
+    assert!(
+        e[0].abs() < 1e-6,
+        "joint 1 turns about the vertical: {}",
+        e[0]
+    );
+    let shoulder = e[1].abs();
+    assert!(
+        (20.0..300.0).contains(&shoulder),
+        "the shoulder holds the arm with {shoulder} N m"
+    );
+    assert!(e.iter().all(|x| x.abs() <= shoulder + 1e-9), "{e:?}");
 }

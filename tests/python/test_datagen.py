@@ -114,9 +114,10 @@ def test_exp2_cube_moves_only_while_held(exp2_bag):
     assert len({tuple(e[0]) for e in episodes}) == 4
 
 
-def test_bag_stats_describe_the_physics_against_the_bag_itself(run_cli, exp2_bag, tmp_path):
-    """`bag stats` (issue 18) checked against what rosbags reads: the cube-on-floor share
-    and the realized joint spread, recomputed here from the messages."""
+def test_bag_stats_describe_the_physics_against_the_bag_itself(run_cli, exp2_bag, tmp_path, repo_root):
+    """`bag stats` (issue 18) checked against what rosbags reads: the cube-on-floor share,
+    the realized joint spread and the joints' speeds against the URDF velocity limits,
+    recomputed here from the messages."""
     r = run_cli("bag", "stats", exp2_bag)
     assert r.returncode == 0, r.stderr
     stats = json.loads(r.stdout)
@@ -129,6 +130,14 @@ def test_bag_stats_describe_the_physics_against_the_bag_itself(run_cli, exp2_bag
     assert stats["cube_on_floor_share"] == pytest.approx(on_floor)
     realized = np.diff(theta, axis=1).reshape(-1, 7).std(axis=0)
     assert stats["realized_spread"] == pytest.approx(realized.tolist(), rel=1e-4)
+    import xml.etree.ElementTree as ET
+    urdf = ET.parse(repo_root / "urdf" / "iiwa14_magnet.urdf").getroot()
+    limits = np.array([float(j.find("limit").get("velocity")) for j in urdf.iter("joint")
+                       if j.get("type") == "revolute"])
+    speed = np.abs(np.diff(theta, axis=1)).reshape(-1, 7) / (10 / 240) / limits
+    assert stats["overspeed_max"] == pytest.approx(speed.max(), rel=1e-3)
+    assert stats["overspeed_share"] == pytest.approx((speed.max(axis=1) > 1.01).mean())
+    assert stats["overspeed_max"] <= 1.001, "the kinematic servo keeps the limits"
     assert 0 <= stats["in_table_share"] <= 1 and stats["penetration_max"] >= 0
     assert 0 < stats["grasp_success"] <= 1 and stats["switch_ons"] > 0
     r = run_cli("bag", "stats", tmp_path / "missing")

@@ -70,16 +70,48 @@ pub fn run(args: &BagArgs) -> anyhow::Result<()> {
 
 /// Prints the physical statistics of `bags` (one dataset) as JSON.
 fn stats(bags: &[PathBuf]) -> anyhow::Result<()> {
-    let (data, _) = causal_arm_dataset::load_bags(
+    let (data, loaded) = causal_arm_dataset::load_bags(
         bags,
         None,
         causal_arm_dataset::ActionSource::Commanded,
         None,
     )?;
-    let stats = causal_arm_datastats::describe(&data, &causal_arm_sim::SimConfig::default())
-        .context("describing the data")?;
+    let config = causal_arm_sim::SimConfig {
+        velocity_scale: recorded_velocity_scale(loaded.iter().map(|(bag, _)| bag.as_path()))?,
+        ..causal_arm_sim::SimConfig::default()
+    };
+    let stats = causal_arm_datastats::describe(&data, &config).context("describing the data")?;
     println!("{}", serde_json::to_string_pretty(&stats)?);
     Ok(())
+}
+
+/// The velocity scale the bags were recorded with (their joints' speed limits), which
+/// must be one for all of them.
+fn recorded_velocity_scale<'a>(bags: impl Iterator<Item = &'a Path>) -> anyhow::Result<f64> {
+    let key = causal_arm_protocol::bag_keys::VELOCITY_SCALE;
+    let mut scale: Option<(f64, PathBuf)> = None;
+    for bag in bags {
+        let data = BagReader::open(bag)?.custom_data();
+        let text = data.get(key).with_context(|| {
+            format!("{}: the bag records no {key} (custom_data)", bag.display())
+        })?;
+        let value: f64 = text.parse().map_err(|_| {
+            anyhow::anyhow!(
+                "{}: custom_data {key}={text:?} is not a number",
+                bag.display()
+            )
+        })?;
+        match &scale {
+            Some((first, first_bag)) if *first != value => bail!(
+                "{} was recorded with {key}={first}, {} with {value}: describe them apart",
+                first_bag.display(),
+                bag.display()
+            ),
+            Some(_) => {}
+            None => scale = Some((value, bag.to_owned())),
+        }
+    }
+    scale.map(|(value, _)| value).context("no bags to describe")
 }
 
 /// Prints `report` of `path` as JSON, or for a shard set a JSON array of its shards'

@@ -1,5 +1,5 @@
 //! Physical statistics of a dataset: how far the joints were told to move and how far they
-//! did, how deep the arm's links went into the table, how often the cube lay on the floor,
+//! did, whether they kept their velocity limits, how deep the arm's links went into the table, how often the cube lay on the floor,
 //! and how often switching the magnet on caught the cube.
 //!
 //! They compare the simulator's arm modes (kinematic, dynamic) on their data, which the
@@ -7,6 +7,7 @@
 //! dataset's rows and the simulator's own link shapes, so both modes are judged alike.
 
 use causal_arm_dataset::{Dataset, state_names};
+use causal_arm_kinematics::ArmModel;
 use causal_arm_protocol::Experiment;
 use causal_arm_protocol::{ARM_DOF, Scene};
 use causal_arm_sim::{SimConfig, TableProbe};
@@ -14,6 +15,10 @@ use serde::Serialize;
 
 /// Penetration above which a state counts as "in the table", m (contact slop is below it).
 pub const PENETRATION_COUNTED: f64 = 1e-3;
+
+/// A joint whose mean speed over a step exceeds its velocity limit by more than this
+/// share counts as over its limit (the servo's rounding stays far below it).
+pub const OVERSPEED_COUNTED: f64 = 0.01;
 
 /// Why statistics could not be computed.
 #[derive(Debug, thiserror::Error)]
@@ -42,6 +47,11 @@ pub struct DataStats {
     pub realized_spread: [f64; ARM_DOF],
     /// Realized ÷ commanded spread, mean over joints: how much of a command the arm did.
     pub realized_share: f64,
+    /// Share of transitions in which some joint's mean speed exceeded its velocity limit
+    /// (URDF × `velocity_scale`) by more than [`OVERSPEED_COUNTED`].
+    pub overspeed_share: f64,
+    /// Fastest mean speed of a joint over a step ÷ that joint's velocity limit.
+    pub overspeed_max: f64,
     /// Share of states with some link more than [`PENETRATION_COUNTED`] into the table.
     pub in_table_share: f64,
     /// Deepest any link went into the table, m.
@@ -93,6 +103,7 @@ pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsEr
         .map(|j| realized_spread[j] / commanded_spread[j].max(1e-12))
         .sum::<f64>()
         / ARM_DOF as f64;
+    let (overspeed_share, overspeed_max) = overspeed(data, &theta, config);
     let probe = TableProbe::new(config)?;
     let mut depths = Vec::with_capacity(rows);
     for r in 0..rows {
@@ -101,16 +112,19 @@ pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsEr
         depths.push(probe.penetration(&q)?);
     }
     let in_table = depths.iter().filter(|&&d| d > PENETRATION_COUNTED).count();
-    depths.sort_by(f64::total_cmp);
-    let p999 = depths[((rows as f64 * 0.999) as usize).min(rows - 1)];
+    let penetration_max = depths.iter().copied().fold(0.0, f64::max);
+    let p999_rank = ((rows as f64 * 0.999) as usize).min(rows - 1);
+    let (_, &mut p999, _) = depths.select_nth_unstable_by(p999_rank, f64::total_cmp);
     let mut stats = DataStats {
         experiment: data.experiment.to_string(),
         transitions: rows,
         commanded_spread,
         realized_spread,
         realized_share,
+        overspeed_share,
+        overspeed_max,
         in_table_share: in_table as f64 / rows as f64,
-        penetration_max: depths[rows - 1],
+        penetration_max,
         penetration_p999: p999,
         cube_on_floor_share: None,
         switch_ons: None,
@@ -120,6 +134,30 @@ pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsEr
         exp2_stats(data, &names, &config.scene(), &mut stats)?;
     }
     Ok(stats)
+}
+
+/// How often and how far the joints' mean speeds over a step exceeded their velocity
+/// limits: (share of transitions with some joint over, largest speed ÷ limit).
+fn overspeed(data: &Dataset, theta: &[usize], config: &SimConfig) -> (f64, f64) {
+    let model = ArmModel::embedded();
+    let step_seconds = config.dt * config.substeps as f64;
+    let limit: Vec<f64> = model
+        .limits()
+        .iter()
+        .map(|l| l.velocity * config.velocity_scale)
+        .collect();
+    let (mut over, mut fastest) = (0usize, 0.0f64);
+    for r in 0..data.rows() {
+        let (s, next) = (data.state(r), data.next_state(r));
+        let ratio = theta
+            .iter()
+            .zip(&limit)
+            .map(|(&t, l)| ((next[t] - s[t]) as f64).abs() / step_seconds / l)
+            .fold(0.0, f64::max);
+        over += usize::from(ratio > 1.0 + OVERSPEED_COUNTED);
+        fastest = fastest.max(ratio);
+    }
+    (over as f64 / data.rows() as f64, fastest)
 }
 
 /// The cube and magnet statistics of an exp 2 dataset.
@@ -230,6 +268,13 @@ mod tests {
         assert_eq!(stats.switch_ons, Some(1));
         assert_eq!(stats.grasp_success, Some(1.0));
         assert_eq!(stats.in_table_share, 0.0, "home is above the table");
+        // Joint 0 turned 0.1 rad in one 1/24 s step: 2.4 rad/s against its 1.483.
+        assert_eq!(stats.overspeed_share, 0.5);
+        assert!(
+            (stats.overspeed_max - 2.4 / 1.483).abs() < 1e-3,
+            "{}",
+            stats.overspeed_max
+        );
     }
 
     #[test]

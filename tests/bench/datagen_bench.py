@@ -5,7 +5,8 @@ Runs, in one go on this machine:
   * `causal-arm generate exp1` (simulator + babbler + bag writing, one process, no DDS)
   * `causal-arm generate exp2`
   * both again with `--arm dynamic` (the arm a multibody under gravity moved by
-    force-limited motors, instead of kinematic bodies placed by forward kinematics)
+    speed- and torque-limited motors, instead of kinematic bodies placed by forward
+    kinematics)
   * both again with `--shards 2` (two seeded shards simulated side by side, one per core),
     and `launch exp1 --shards 2` (two graphs in two ROS domains)
   * `causal-arm launch exp1` (simulator, babbler and recorder as three DDS processes in

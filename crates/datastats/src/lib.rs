@@ -56,6 +56,8 @@ pub struct DataStats {
     pub in_table_share: f64,
     /// Deepest any link went into the table, m.
     pub penetration_max: f64,
+    /// Where that was: the state's episode and step in the data (first of equals).
+    pub penetration_max_at: [u32; 2],
     /// 99.9th percentile of the penetration over states, m.
     pub penetration_p999: f64,
     /// Exp 2: share of states with the cube below the table top (fallen to the floor).
@@ -112,7 +114,10 @@ pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsEr
         depths.push(probe.penetration(&q)?);
     }
     let in_table = depths.iter().filter(|&&d| d > PENETRATION_COUNTED).count();
-    let penetration_max = depths.iter().copied().fold(0.0, f64::max);
+    let deepest_row = (0..rows)
+        .max_by(|&a, &b| depths[a].total_cmp(&depths[b]).then(b.cmp(&a)))
+        .unwrap_or(0);
+    let penetration_max = depths[deepest_row];
     let p999_rank = ((rows as f64 * 0.999) as usize).min(rows - 1);
     let (_, &mut p999, _) = depths.select_nth_unstable_by(p999_rank, f64::total_cmp);
     let mut stats = DataStats {
@@ -125,6 +130,7 @@ pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsEr
         overspeed_max,
         in_table_share: in_table as f64 / rows as f64,
         penetration_max,
+        penetration_max_at: [data.episodes[deepest_row], data.steps[deepest_row]],
         penetration_p999: p999,
         cube_on_floor_share: None,
         switch_ons: None,

@@ -52,6 +52,8 @@ pub struct DataStats {
     pub overspeed_share: f64,
     /// Fastest mean speed of a joint over a step ÷ that joint's velocity limit.
     pub overspeed_max: f64,
+    /// Where that was: the episode and step of the transition's first state.
+    pub overspeed_max_at: [u32; 2],
     /// Share of states with some link more than [`PENETRATION_COUNTED`] into the table.
     pub in_table_share: f64,
     /// Deepest any link went into the table, m.
@@ -105,7 +107,7 @@ pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsEr
         .map(|j| realized_spread[j] / commanded_spread[j].max(1e-12))
         .sum::<f64>()
         / ARM_DOF as f64;
-    let (overspeed_share, overspeed_max) = overspeed(data, &theta, config);
+    let (overspeed_share, overspeed_max, fastest_row) = overspeed(data, &theta, config);
     let probe = TableProbe::new(config)?;
     let mut depths = Vec::with_capacity(rows);
     for r in 0..rows {
@@ -128,6 +130,7 @@ pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsEr
         realized_share,
         overspeed_share,
         overspeed_max,
+        overspeed_max_at: [data.episodes[fastest_row], data.steps[fastest_row]],
         in_table_share: in_table as f64 / rows as f64,
         penetration_max,
         penetration_max_at: [data.episodes[deepest_row], data.steps[deepest_row]],
@@ -143,8 +146,8 @@ pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsEr
 }
 
 /// How often and how far the joints' mean speeds over a step exceeded their velocity
-/// limits: (share of transitions with some joint over, largest speed ÷ limit).
-fn overspeed(data: &Dataset, theta: &[usize], config: &SimConfig) -> (f64, f64) {
+/// limits: (share of transitions with some joint over, largest speed ÷ limit, its row).
+fn overspeed(data: &Dataset, theta: &[usize], config: &SimConfig) -> (f64, f64, usize) {
     let model = ArmModel::embedded();
     let step_seconds = config.dt * config.substeps as f64;
     let limit: Vec<f64> = model
@@ -152,7 +155,7 @@ fn overspeed(data: &Dataset, theta: &[usize], config: &SimConfig) -> (f64, f64) 
         .iter()
         .map(|l| l.velocity * config.velocity_scale)
         .collect();
-    let (mut over, mut fastest) = (0usize, 0.0f64);
+    let (mut over, mut fastest, mut fastest_row) = (0usize, 0.0f64, 0usize);
     for r in 0..data.rows() {
         let (s, next) = (data.state(r), data.next_state(r));
         let ratio = theta
@@ -161,9 +164,11 @@ fn overspeed(data: &Dataset, theta: &[usize], config: &SimConfig) -> (f64, f64) 
             .map(|(&t, l)| ((next[t] - s[t]) as f64).abs() / step_seconds / l)
             .fold(0.0, f64::max);
         over += usize::from(ratio > 1.0 + OVERSPEED_COUNTED);
-        fastest = fastest.max(ratio);
+        if ratio > fastest {
+            (fastest, fastest_row) = (ratio, r);
+        }
     }
-    (over as f64 / data.rows() as f64, fastest)
+    (over as f64 / data.rows() as f64, fastest, fastest_row)
 }
 
 /// The cube and magnet statistics of an exp 2 dataset.

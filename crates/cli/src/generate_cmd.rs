@@ -65,7 +65,7 @@ pub struct GenerateArgs {
     velocity_scale: f64,
     /// How the simulator moves the arm: kinematic (links placed by forward kinematics:
     /// exact and fast, but they pass through the table) or dynamic (a multibody under
-    /// gravity, moved by motors within the URDF efforts: it stalls on the table).
+    /// gravity, moved by motors within the URDF velocities and efforts: it stalls on the table).
     #[arg(long, default_value = run_default_text("arm"), value_parser = choice::<ArmMode>())]
     arm: ArmMode,
     /// Exp 2: move while switching the magnet (default), so the data can show that the

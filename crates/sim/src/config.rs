@@ -53,8 +53,8 @@ pub enum ArmMode {
     #[default]
     Kinematic,
     /// A rapier multibody with the URDF masses and inertias under gravity, moved by joint
-    /// position motors limited to the URDF efforts: it stalls on the table and can be
-    /// pushed back.
+    /// motors limited to the URDF velocities and efforts: it stalls on the table and can
+    /// be pushed back.
     Dynamic,
 }
 

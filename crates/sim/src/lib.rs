@@ -9,7 +9,7 @@
 //!   pushed back. This keeps joint tracking exact, deterministic and fast: physics only
 //!   integrates the cube (the one free body) and its contacts. `SimConfig::arm =
 //!   ArmMode::Dynamic` makes the arm a rapier multibody instead, under gravity, whose
-//!   force-limited joint motors track the same servo path (`dynamic.rs`).
+//!   speed- and torque-limited joint motors track the same servo path (`dynamic.rs`).
 //! - **Physics** is rapier3d at 240 Hz; each command runs for `substeps` steps (10).
 //!   The links' URDF cylinders become capsules of the same radius and length (see
 //!   [`LinkCylinders`]); the magnet tool keeps its exact cylinder.

@@ -123,7 +123,7 @@ pub(crate) fn insert_dynamic_arm(
     let zero = [0.0; ARM_DOF];
     let poses = model.link_poses(&zero)?;
     let mut bodies: Vec<(&str, RigidBodyHandle)> = Vec::new();
-    let mut joints = Vec::new();
+    let mut effort_limits = Vec::new();
     let mut handles = Vec::new();
     let limits = model.limits();
     for (index, (name, pose)) in poses.iter().enumerate() {
@@ -168,8 +168,8 @@ pub(crate) fn insert_dynamic_arm(
                 })?;
             let data = match joint.joint_type {
                 urdf_rs::JointType::Revolute => {
-                    let i = joints.len();
-                    joints.push(limits[i].effort);
+                    let i = effort_limits.len();
+                    effort_limits.push(limits[i].effort);
                     revolute_joint(joint, &limits[i])
                 }
                 _ => FixedJointBuilder::new()
@@ -188,17 +188,17 @@ pub(crate) fn insert_dynamic_arm(
         }
         bodies.push((name, body));
     }
-    if joints.len() != ARM_DOF {
+    if effort_limits.len() != ARM_DOF {
         return Err(SimError::Config(format!(
             "dynamic arm: expected {ARM_DOF} revolute joints, built {}",
-            joints.len()
+            effort_limits.len()
         )));
     }
     let tool_body = bodies.last().map(|(_, b)| *b).expect("the base has a body");
     Ok(DynamicArm {
         joints: std::array::from_fn(|i| handles[i].expect("checked above")),
         tool_body,
-        effort_limit: std::array::from_fn(|i| joints[i]),
+        effort_limit: std::array::from_fn(|i| effort_limits[i]),
         inertials: ArmInertials::from_urdf(robot, model)?,
         velocity_target: zero,
         previous_velocity: zero,

@@ -10,6 +10,7 @@
 # 4. the exp2 IM at 100 cosine epochs (fold 1);
 # 5. the paper-size exp1 bag (seed 0, 2 shards), its statistics and the exp1 models with
 #    the summary rows' protocols (fold 1).
+# Stop 31 ran steps 1-4 (times.txt); step 5 (exp1) is still to run.
 set -e
 B=${B:-$PWD/target/release/causal-arm}  # run from the repository root
 T=$PWD/docs/truth/paper_exp2_dynamic

@@ -1,6 +1,7 @@
 //! Physical statistics of a dataset: how far the joints were told to move and how far they
-//! did, whether they kept their velocity limits, how deep the arm's links went into the table, how often the cube lay on the floor,
-//! and how often switching the magnet on caught the cube.
+//! did, whether they kept their velocity limits, how deep the arm's links went into the
+//! table, how often the cube lay on the floor, and how often switching the magnet on
+//! caught the cube.
 //!
 //! They compare the simulator's arm modes (kinematic, dynamic) on their data, which the
 //! learned models and the paper's figures then inherit. Every statistic is read from the

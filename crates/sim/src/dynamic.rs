@@ -11,7 +11,7 @@
 //! limits instead of entering it. The magnet holds the cube with a fixed joint instead of
 //! placing it.
 
-use ::nalgebra::{Isometry3, Matrix3, Point3, UnitQuaternion, Vector3};
+use ::nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use causal_arm_kinematics::ArmModel;
 use causal_arm_protocol::ARM_DOF;
 use rapier3d::math::{Matrix, Vector};
@@ -21,7 +21,7 @@ use rapier3d::prelude::{
     RigidBodyHandle,
 };
 
-use crate::loads::ArmInertials;
+use crate::loads::{ArmInertials, inertia_tensor};
 use crate::world::{link_shapes, to_pose, urdf_pose};
 use crate::{SimConfig, SimError, Simulator};
 
@@ -61,10 +61,7 @@ const SATURATION_MISS: f64 = 0.05;
 fn link_mass_properties(link: &urdf_rs::Link) -> MassProperties {
     let inertial = &link.inertial;
     let frame = urdf_pose(&inertial.origin);
-    let i = &inertial.inertia;
-    let local = Matrix3::new(
-        i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz,
-    );
+    let local = inertia_tensor(&inertial.inertia);
     let r = frame.rotation.to_rotation_matrix();
     let tensor = r.matrix() * local * r.matrix().transpose();
     let col = |c: usize| {

@@ -9,6 +9,13 @@ use causal_arm_protocol::ARM_DOF;
 use crate::SimError;
 use crate::world::urdf_pose;
 
+/// A URDF inertia as the symmetric tensor it stands for (in the inertial frame), kg m².
+pub(crate) fn inertia_tensor(i: &urdf_rs::Inertia) -> Matrix3<f64> {
+    Matrix3::new(
+        i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz,
+    )
+}
+
 /// One link's mass, centre of mass and inertia tensor, at its place in the FK chain.
 #[derive(Clone)]
 struct LinkInertial {
@@ -46,14 +53,11 @@ impl ArmInertials {
             let Some(link) = robot.links.iter().find(|l| &l.name == name) else {
                 continue;
             };
-            let i = &link.inertial.inertia;
             links.push(LinkInertial {
                 pose_index: index,
                 mass: link.inertial.mass.value,
                 com: urdf_pose(&link.inertial.origin),
-                tensor: Matrix3::new(
-                    i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz,
-                ),
+                tensor: inertia_tensor(&link.inertial.inertia),
             });
         }
         if moved.len() != ARM_DOF {

@@ -348,3 +348,64 @@ fn drop_partial_last_stamp(messages: &mut Vec<causal_arm_bag::RawMessage>) -> us
     messages.truncate(keep);
     dropped
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use causal_arm_protocol::bag_keys::VELOCITY_SCALE;
+
+    /// An empty bag whose custom_data holds `velocity_scale` (none when `None`).
+    fn bag_recorded_with(dir: &Path, velocity_scale: Option<&str>) -> PathBuf {
+        let mut options = BagOptions::default();
+        if let Some(value) = velocity_scale {
+            options
+                .custom_data
+                .insert(VELOCITY_SCALE.to_owned(), value.to_owned());
+        }
+        BagWriter::create(dir, options).unwrap().finish().unwrap();
+        dir.to_owned()
+    }
+
+    fn scale_of(bags: &[PathBuf]) -> anyhow::Result<f64> {
+        recorded_velocity_scale(bags.iter().map(PathBuf::as_path))
+    }
+
+    #[test]
+    fn stats_take_the_one_velocity_scale_the_bags_were_recorded_with() {
+        let tmp = tempfile::tempdir().unwrap();
+        let a = bag_recorded_with(&tmp.path().join("a"), Some("0.5"));
+        let b = bag_recorded_with(&tmp.path().join("b"), Some("0.5"));
+        assert_eq!(scale_of(&[a, b]).unwrap(), 0.5);
+    }
+
+    #[test]
+    fn stats_refuse_bags_recorded_with_different_velocity_scales() {
+        let tmp = tempfile::tempdir().unwrap();
+        let a = bag_recorded_with(&tmp.path().join("a"), Some("1"));
+        let b = bag_recorded_with(&tmp.path().join("b"), Some("2"));
+        let message = scale_of(&[a.clone(), b.clone()]).unwrap_err().to_string();
+        assert!(message.contains(&a.display().to_string()), "{message}");
+        assert!(message.contains(&b.display().to_string()), "{message}");
+        assert!(
+            message.contains("=1, ") && message.contains("with 2"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn stats_refuse_a_bag_without_or_with_a_garbled_velocity_scale() {
+        let tmp = tempfile::tempdir().unwrap();
+        let missing = bag_recorded_with(&tmp.path().join("missing"), None);
+        let message = scale_of(std::slice::from_ref(&missing))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.contains("records no") && message.contains("missing"),
+            "{message}"
+        );
+        let garbled = bag_recorded_with(&tmp.path().join("garbled"), Some("fast"));
+        let message = scale_of(&[garbled]).unwrap_err().to_string();
+        assert!(message.contains("\"fast\" is not a number"), "{message}");
+        assert!(scale_of(&[]).is_err(), "no bags, no scale");
+    }
+}

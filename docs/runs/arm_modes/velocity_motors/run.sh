@@ -10,7 +10,8 @@
 # 4. the exp2 IM at 100 cosine epochs (fold 1);
 # 5. the paper-size exp1 bag (seed 0, 2 shards), its statistics and the exp1 models with
 #    the summary rows' protocols (fold 1).
-# Stop 31 ran steps 1-4 (times.txt); step 5 (exp1) is still to run.
+# Stop 31 ran steps 1-4 (times.txt); stop 32 ran steps 1-5 again after turning rapier's
+# contact recycling off in the dynamic world (the 11.1 mm state).
 set -e
 B=${B:-$PWD/target/release/causal-arm}  # run from the repository root
 T=$PWD/docs/truth/paper_exp2_dynamic

@@ -35,6 +35,11 @@ pub struct InterveneArgs {
     /// An effect counts when it exceeds this, in the feature's unit (m, rad).
     #[arg(allow_negative_numbers = true, long, default_value_t = 1e-6)]
     tolerance: f64,
+    /// An effect counts only when it also exceeds this multiple of the std of the
+    /// feature's one-step change over the intervened states (0: any effect; the dynamic
+    /// arm's joints all move each other a little, see docs/RESULTS.md).
+    #[arg(allow_negative_numbers = true, long, default_value_t = 0.0)]
+    effect_size: f64,
     /// Edges active in fewer than this share of states (but some) are "rare": not scored.
     #[arg(allow_negative_numbers = true, long, default_value_t = 0.01)]
     min_fraction: f64,
@@ -55,6 +60,7 @@ pub fn run(args: &InterveneArgs) -> anyhow::Result<()> {
         horizon: args.horizon,
         delta_scales: args.delta_scales.clone(),
         tolerance: args.tolerance,
+        effect_size: args.effect_size,
         min_fraction: args.min_fraction,
         threads: args.threads,
     };

@@ -25,6 +25,8 @@ struct StateEffects {
     effects: Vec<f64>,
     /// Largest |Δ| between two identical replays.
     replay: f64,
+    /// The factual one-step change s(t+1) − s(t) per feature (Euler angles wrapped).
+    step: Vec<f64>,
 }
 
 /// Everything a worker needs besides the snapshot.
@@ -64,14 +66,19 @@ impl Setup<'_> {
         Ok(out)
     }
 
-    /// |a − b| per feature, Euler angles wrapped.
-    fn difference(&self, a: &[f64], b: &[f64], k: usize) -> f64 {
+    /// a − b per feature, Euler angles wrapped.
+    fn signed_difference(&self, a: &[f64], b: &[f64], k: usize) -> f64 {
         let d = a[k] - b[k];
         if self.angular[k % self.n_state] {
-            wrap_angle(d).abs()
+            wrap_angle(d)
         } else {
-            d.abs()
+            d
         }
+    }
+
+    /// |a − b| per feature, Euler angles wrapped.
+    fn difference(&self, a: &[f64], b: &[f64], k: usize) -> f64 {
+        self.signed_difference(a, b, k).abs()
     }
 
     /// Intervenes on every action at the trace's state `index` (the snapshot).
@@ -114,6 +121,10 @@ impl Setup<'_> {
             }
         }
         let state = snapshot.state();
+        let now = state_features(self.trace.experiment, &snapshot.step_messages(&state));
+        let step = (0..self.n_state)
+            .map(|k| self.signed_difference(&factual, &now, k))
+            .collect();
         Ok(StateEffects {
             index,
             contexts: self
@@ -123,6 +134,7 @@ impl Setup<'_> {
                 .collect(),
             effects,
             replay,
+            step,
         })
     }
 }
@@ -184,6 +196,7 @@ pub fn intervene(
         joint_deltas: setup.joint_deltas.clone(),
         resimulated_steps: resimulated,
         noise_floor: found.iter().map(|e| e.replay).fold(0.0, f64::max),
+        feature_step_std: step_std(setup.n_state, &found),
         seconds: started.elapsed().as_secs_f64(),
         matrices: summarise(&setup, &found),
     })
@@ -294,17 +307,37 @@ fn check_against_bag(state: &SimState, recorded: &crate::TraceStep) -> Result<()
     Ok(())
 }
 
-/// Edge statistics per context and horizon.
+/// Std of each feature's factual one-step change over the intervened states.
+fn step_std(n_state: usize, found: &[StateEffects]) -> Vec<f64> {
+    let n = found.len().max(1) as f64;
+    (0..n_state)
+        .map(|k| {
+            let mean = found.iter().map(|e| e.step[k]).sum::<f64>() / n;
+            let var = found
+                .iter()
+                .map(|e| (e.step[k] - mean).powi(2))
+                .sum::<f64>()
+                / n;
+            var.sqrt()
+        })
+        .collect()
+}
+
+/// Edge statistics per context and horizon. An effect on feature k counts above the plan's
+/// tolerance and its effect size times the feature's step std.
 fn summarise(setup: &Setup, found: &[StateEffects]) -> Vec<EdgeMatrix> {
     let (na, ns) = (setup.n_action, setup.n_state);
-    let tol = setup.plan.tolerance;
+    let thresholds: Vec<f64> = step_std(ns, found)
+        .iter()
+        .map(|std| f64::max(setup.plan.tolerance, setup.plan.effect_size * std))
+        .collect();
     let mut out = Vec::new();
     for h in 0..setup.plan.horizon {
         for (c, context) in setup.contexts.iter().enumerate() {
             let members: Vec<&StateEffects> = found.iter().filter(|e| e.contexts[c]).collect();
             let cell = |a: usize, k: usize| {
                 let values = members.iter().map(|e| e.effects[h * na * ns + a * ns + k]);
-                let active: Vec<f64> = values.clone().filter(|&v| v > tol).collect();
+                let active: Vec<f64> = values.clone().filter(|&v| v > thresholds[k]).collect();
                 let fraction = active.len() as f64 / members.len().max(1) as f64;
                 let mean = active.iter().sum::<f64>() / active.len().max(1) as f64;
                 (fraction, mean, values.fold(0.0, f64::max))

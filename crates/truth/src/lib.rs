@@ -79,6 +79,12 @@ pub struct Plan {
     pub delta_scales: Vec<f64>,
     /// An effect counts when |Δ s_k| exceeds this, in the feature's unit (m, rad, 1).
     pub tolerance: f64,
+    /// An effect counts only when |Δ s_k| also exceeds this multiple of the std of the
+    /// feature's own one-step change over the intervened states (0: any effect above
+    /// `tolerance`). A force-limited arm is one coupled body, where every joint moves
+    /// every other by a little; this asks which effects matter on the feature's own scale.
+    #[serde(default)]
+    pub effect_size: f64,
     /// Edges active in fewer than this fraction of a context's states (but in some) are
     /// "rare": neither present nor absent when claims are scored.
     pub min_fraction: f64,
@@ -94,6 +100,7 @@ impl Default for Plan {
             horizon: 1,
             delta_scales: vec![0.1, 0.5, 1.0, 2.0],
             tolerance: 1e-6,
+            effect_size: 0.0,
             min_fraction: 0.01,
             threads: None,
         }
@@ -125,6 +132,12 @@ impl Plan {
             return bad(format!(
                 "--tolerance must be a non-negative number, got {}",
                 self.tolerance
+            ));
+        }
+        if !(self.effect_size.is_finite() && self.effect_size >= 0.0) {
+            return bad(format!(
+                "--effect-size must be a non-negative number, got {}",
+                self.effect_size
             ));
         }
         if !(0.0..=1.0).contains(&self.min_fraction) {
@@ -207,6 +220,10 @@ pub struct Truth {
     /// Largest |Δ| between two identical replays of the recorded command over every state,
     /// feature and horizon: the noise floor (0 for a deterministic simulator).
     pub noise_floor: f64,
+    /// Std of each state feature's one-step change s_k(t+1) − s_k(t) over the intervened
+    /// states (Euler angles wrapped), in the feature's unit: the scale of `plan.effect_size`.
+    #[serde(default)]
+    pub feature_step_std: Vec<f64>,
     /// Wall time of the run, s.
     pub seconds: f64,
     /// One matrix per (context, horizon); `all` at horizon 1 first.

@@ -210,6 +210,7 @@ mod tests {
             joint_deltas: vec![],
             resimulated_steps: 0,
             noise_floor: 0.0,
+            feature_step_std: vec![0.1, 0.1],
             seconds: 0.0,
             matrices: vec![
                 matrix(1, [[1.0, 0.0], [0.0, 0.0]]),

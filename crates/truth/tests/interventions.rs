@@ -222,3 +222,80 @@ fn claims_from(t: &Truth, context: &str) -> EdgeClaims {
             .collect(),
     }
 }
+
+/// Off-diagonal a_j → theta_k edges present in the one-step matrix.
+fn cross_joint_edges(t: &Truth) -> usize {
+    (0..7)
+        .flat_map(|j| (0..7).map(move |k| (j, k)))
+        .filter(|&(j, k)| {
+            j != k && edge(t, "all", &format!("a{j}"), &format!("theta{k}")) == Edge::Present
+        })
+        .count()
+}
+
+#[test]
+fn an_effect_size_keeps_what_matters_on_the_dynamic_arm() {
+    let bag = bag(
+        "dynamic",
+        Experiment::Exp1,
+        RunPlan {
+            episodes: 1,
+            steps_per_episode: 300,
+        },
+        |o| o.sim.arm = causal_arm_sim::ArmMode::Dynamic,
+    );
+    // Every transition of the episode is intervened on.
+    let at = |effect_size: f64| {
+        let plan = Plan {
+            states: 299,
+            effect_size,
+            ..Plan::default()
+        };
+        intervene(&bag, Experiment::Exp1, &plan, &mut |_, _| {}).unwrap()
+    };
+    let exact = at(0.0);
+    let sized = at(0.1);
+    // The scale is the recorded joints' own one-step spread (the replay is bit-exact).
+    let trace = causal_arm_truth::Trace::read(&bag, Experiment::Exp1).unwrap();
+    for k in 0..7 {
+        let steps: Vec<f64> = trace
+            .steps
+            .windows(2)
+            .map(|w| w[1].theta[k] - w[0].theta[k])
+            .collect();
+        let mean = steps.iter().sum::<f64>() / steps.len() as f64;
+        let var = steps.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / steps.len() as f64;
+        let ours = exact.feature_step_std[exact.state_index(&format!("theta{k}")).unwrap()];
+        assert!(
+            (ours - var.sqrt()).abs() < 1e-12,
+            "theta{k}: {ours} vs {}",
+            var.sqrt()
+        );
+    }
+    // A force-limited arm is coupled: exactly, some joints move others.
+    let (coupled, kept) = (cross_joint_edges(&exact), cross_joint_edges(&sized));
+    assert!(coupled > 0, "the dynamic arm's joints move each other");
+    assert!(
+        kept < coupled,
+        "{kept} of {coupled} couplings kept at 0.1 std"
+    );
+    // Each joint command still moves its own joint, and no edge appears that was absent.
+    let (m0, m1) = (exact.one_step(), sized.one_step());
+    for j in 0..7 {
+        let e = edge(&sized, "all", &format!("a{j}"), &format!("theta{j}"));
+        assert_eq!(e, Edge::Present, "a{j} -> theta{j}");
+    }
+    for (r0, r1) in m0.active_fraction.iter().zip(&m1.active_fraction) {
+        for (f0, f1) in r0.iter().zip(r1) {
+            assert!(f1 <= f0);
+        }
+    }
+    let mut bad = Plan {
+        effect_size: -1.0,
+        ..Plan::default()
+    };
+    let e = intervene(&bag, Experiment::Exp1, &bad, &mut |_, _| {}).unwrap_err();
+    assert!(e.to_string().contains("--effect-size"), "{e}");
+    bad.effect_size = f64::NAN;
+    assert!(bad.check().is_err());
+}

@@ -32,6 +32,7 @@ mod servo;
 mod world;
 
 pub use config::{ArmMode, LinkCylinders, MAGNET_LINK, SimConfig};
+pub use dynamic::SELF_COLLISION_EXEMPT;
 pub use probe::TableProbe;
 
 use ::nalgebra::Isometry3;

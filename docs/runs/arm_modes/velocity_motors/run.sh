@@ -11,7 +11,9 @@
 # 5. the paper-size exp1 bag (seed 0, 2 shards), its statistics and the exp1 models with
 #    the summary rows' protocols (fold 1).
 # Stop 31 ran steps 1-4 (times.txt); stop 32 ran steps 1-5 again after turning rapier's
-# contact recycling off in the dynamic world (the 11.1 mm state).
+# contact recycling off in the dynamic world (the 11.1 mm state) and exempting links 5 and 7
+# from colliding (their cylinders stalled the wrist at 1.74 rad); stats_exp2_fresh_contacts_only.json
+# is the bag with only the first change.
 set -e
 B=${B:-$PWD/target/release/causal-arm}  # run from the repository root
 T=$PWD/docs/truth/paper_exp2_dynamic

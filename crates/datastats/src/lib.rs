@@ -134,8 +134,7 @@ pub fn describe(data: &Dataset, config: &SimConfig) -> Result<DataStats, StatsEr
         .max_by(|&a, &b| depths[a].total_cmp(&depths[b]).then(b.cmp(&a)))
         .unwrap_or(0);
     let penetration_max = depths[deepest];
-    let p999_rank = ((probed as f64 * 0.999) as usize).min(probed - 1);
-    let (_, &mut p999, _) = depths.select_nth_unstable_by(p999_rank, f64::total_cmp);
+    let p999 = quantile(&mut depths, 0.999);
     let mut stats = DataStats {
         experiment: data.experiment.to_string(),
         transitions: rows,

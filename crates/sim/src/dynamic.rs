@@ -7,9 +7,9 @@
 //! effort limit. The position it tracks is the servo's reference, the same velocity- and
 //! acceleration-limited path to the command that the kinematic arm follows exactly. Here
 //! gravity acts on the links. The arm collides with the table, the floor, the cube and
-//! its own non-adjacent links (but for [`SELF_COLLISION_EXEMPT`]). An arm that meets the table stalls on it at its effort
-//! limits instead of entering it. The magnet holds the cube with a fixed joint instead of
-//! placing it.
+//! its own non-adjacent links (but for [`SELF_COLLISION_EXEMPT`]). An arm that meets the
+//! table stalls on it at its effort limits instead of entering it. The magnet holds the
+//! cube with a fixed joint instead of placing it.
 
 use ::nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use causal_arm_kinematics::ArmModel;

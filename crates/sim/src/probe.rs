@@ -54,13 +54,25 @@ impl TableProbe {
         })
     }
 
+    /// The arm's link shapes placed at joint angles `q`: (index of the link in
+    /// `ArmModel::link_poses`, world pose, shape).
+    pub(crate) fn placed_shapes(
+        &self,
+        q: &[f64; ARM_DOF],
+    ) -> Result<Vec<(usize, Pose, &SharedShape)>, SimError> {
+        let poses = self.model.link_poses(q)?;
+        Ok(self
+            .shapes
+            .iter()
+            .map(|(index, local, shape)| (*index, to_pose(&poses[*index].1) * *local, shape))
+            .collect())
+    }
+
     /// How far the deepest link shape reaches into the table at joint angles `q`, m; 0 when
     /// no link touches it.
     pub fn penetration(&self, q: &[f64; ARM_DOF]) -> Result<f64, SimError> {
-        let poses = self.model.link_poses(q)?;
         let mut deepest = 0.0f64;
-        for (index, local, shape) in &self.shapes {
-            let pose = to_pose(&poses[*index].1) * *local;
+        for (_, pose, shape) in self.placed_shapes(q)? {
             let found = contact(
                 &pose,
                 shape.as_ref(),

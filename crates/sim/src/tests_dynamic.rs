@@ -5,9 +5,7 @@
 use super::*;
 use crate::tests::hold;
 use causal_arm_kinematics::{IkOptions, IkTarget};
-use rapier3d::math::Pose;
 use rapier3d::parry::query::contact;
-use rapier3d::prelude::SharedShape;
 
 fn dynamic(seed: u64) -> Simulator {
     Simulator::new(SimConfig {
@@ -98,30 +96,20 @@ fn the_dynamic_arm_holds_home_and_tracks_a_target() {
     assert!(ef_error < 2e-4, "tool {ef_error} m from target");
 }
 
-/// The arm's link shapes placed at `q`: (index in `link_poses`, link name, pose, shape).
-fn placed_shapes(q: &[f64; ARM_DOF]) -> Vec<(usize, String, Pose, SharedShape)> {
-    let config = SimConfig::default();
-    let robot = urdf_rs::read_from_string(causal_arm_kinematics::EMBEDDED_IIWA_URDF).unwrap();
-    let model = ArmModel::from_robot(&robot, "embedded").unwrap();
-    let mut shapes = Vec::new();
-    for (index, (name, pose)) in model.link_poses(q).unwrap().iter().enumerate() {
-        let Some(link) = robot.links.iter().find(|l| l.name.as_str() == &**name) else {
-            continue;
-        };
-        for shape in crate::world::link_shapes(link, &config) {
-            let placed = crate::world::to_pose(pose) * shape.position;
-            shapes.push((index, name.to_string(), placed, shape.shape.clone()));
-        }
-    }
-    shapes
-}
-
 /// Over a grid of every joint and every two neighbouring joints through their ranges (the
 /// others at zero), the only non-adjacent links whose shapes overlap are the exempt pairs:
 /// the URDF's coarse cylinders, not the arm, collide there.
 #[test]
 fn only_the_exempt_link_pairs_overlap_within_the_joint_ranges() {
-    let limits = ArmModel::embedded().limits().to_vec();
+    let model = ArmModel::embedded();
+    let limits = model.limits().to_vec();
+    let names: Vec<String> = model
+        .link_poses(&[0.0; ARM_DOF])
+        .unwrap()
+        .iter()
+        .map(|(name, _)| name.to_string())
+        .collect();
+    let probe = TableProbe::new(&SimConfig::default()).unwrap();
     let at = |j: usize, step: usize| {
         limits[j].lower + (limits[j].upper - limits[j].lower) * step as f64 / 24.0
     };
@@ -131,14 +119,14 @@ fn only_the_exempt_link_pairs_overlap_within_the_joint_ranges() {
         for (a, b) in (0..=24).flat_map(|a| (0..=24).map(move |b| (a, b))) {
             let mut q = [0.0; ARM_DOF];
             (q[j], q[k]) = (at(j, a), at(k, b));
-            let shapes = placed_shapes(&q);
-            for (x, (i, name_i, pose_i, shape_i)) in shapes.iter().enumerate() {
-                for (l, name_l, pose_l, shape_l) in &shapes[x + 1..] {
+            let shapes = probe.placed_shapes(&q).unwrap();
+            for (x, (i, pose_i, shape_i)) in shapes.iter().enumerate() {
+                for (l, pose_l, shape_l) in &shapes[x + 1..] {
                     let touching = contact(pose_i, shape_i.as_ref(), pose_l, shape_l.as_ref(), 0.0)
                         .unwrap()
                         .is_some_and(|c| c.dist < 0.0);
                     if *l > i + 1 && touching {
-                        overlapping.insert((name_i.clone(), name_l.clone()));
+                        overlapping.insert((names[*i].clone(), names[*l].clone()));
                     }
                 }
             }

@@ -186,6 +186,7 @@ pub fn intervene(
     };
     let (mut found, resimulated) = run_workers(&setup, &chosen, progress)?;
     found.sort_by_key(|e| e.index);
+    let feature_step_std = step_std(setup.n_state, &found);
     Ok(Truth {
         format: FORMAT.to_owned(),
         experiment: experiment.to_string(),
@@ -196,9 +197,9 @@ pub fn intervene(
         joint_deltas: setup.joint_deltas.clone(),
         resimulated_steps: resimulated,
         noise_floor: found.iter().map(|e| e.replay).fold(0.0, f64::max),
-        feature_step_std: step_std(setup.n_state, &found),
         seconds: started.elapsed().as_secs_f64(),
-        matrices: summarise(&setup, &found),
+        matrices: summarise(&setup, &found, &feature_step_std),
+        feature_step_std,
     })
 }
 
@@ -324,10 +325,10 @@ fn step_std(n_state: usize, found: &[StateEffects]) -> Vec<f64> {
 }
 
 /// Edge statistics per context and horizon. An effect on feature k counts above the plan's
-/// tolerance and its effect size times the feature's step std.
-fn summarise(setup: &Setup, found: &[StateEffects]) -> Vec<EdgeMatrix> {
+/// tolerance and its effect size times the feature's step std (`feature_step_std[k]`).
+fn summarise(setup: &Setup, found: &[StateEffects], feature_step_std: &[f64]) -> Vec<EdgeMatrix> {
     let (na, ns) = (setup.n_action, setup.n_state);
-    let thresholds: Vec<f64> = step_std(ns, found)
+    let thresholds: Vec<f64> = feature_step_std
         .iter()
         .map(|std| f64::max(setup.plan.tolerance, setup.plan.effect_size * std))
         .collect();

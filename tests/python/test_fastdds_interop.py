@@ -212,7 +212,7 @@ def test_every_endpoint_announces_its_type_hash_in_user_data(peer, causal_arm_bi
     wanted = [("writer", "rt/joint_states"), ("reader", "rt/joint_states"),
               ("writer", "rq/trainer/model_infoRequest"), ("reader", "rr/trainer/model_infoReply")]
     # ros2-client's own endpoints too (patched): discovery info, rosout, parameter events,
-    # the clock reader (now typed rosgraph_msgs/Clock as ROS 2 publishes it) and every
+    # the clock reader of a node on sim time (typed rosgraph_msgs/Clock as ROS 2 publishes it) and every
     # parameter service; the values are those Jazzy publishes.
     published = {
         ("writer", "ros_discovery_info"): "91a0593bacdcc50ea9bdcf849a938b128412cc1ea821245c663bcd26f83c295e",
@@ -228,8 +228,10 @@ def test_every_endpoint_announces_its_type_hash_in_user_data(peer, causal_arm_bi
             subprocess.Popen([str(causal_arm_bin), "topic", "pub", "/joint_states", "--type",
                               "sensor_msgs/msg/JointState", "--json", json.dumps(_sample_json()), "--count", "2000",
                               "--rate", "20"], env=env, stdout=null, stderr=null),
+            # On sim time, so it reads /clock (nodes on wall time have no /clock reader).
             subprocess.Popen([str(causal_arm_bin), "topic", "echo", "/joint_states", "--type",
-                              "sensor_msgs/msg/JointState", "--count", "100000", "--timeout", "120"], env=env,
+                              "sensor_msgs/msg/JointState", "--count", "100000", "--timeout", "120",
+                              "--ros-args", "-p", "use_sim_time:=true"], env=env,
                              stdout=null, stderr=null),
             subprocess.Popen([str(causal_arm_bin), "service", "call", "/trainer/model_info", "--type",
                               "causal_arm_msgs/srv/GetModelInfo", "--timeout", "120"], env=env, stdout=null,

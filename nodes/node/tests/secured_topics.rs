@@ -2,8 +2,8 @@
 //! ROS 2 graph needs and rustdds 0.15.1 got wrong (patches/rustdds-security-*.diff).
 //! - Payloads whose length is not a multiple of 4 were padded by the DATA submessage and
 //!   then failed decryption.
-//! - A participant with two readers of one topic (every ROS 2 node has its own `/clock`
-//!   reader besides the user's) got each sample in one reader only, and its second
+//! - A participant with two readers of one topic (a ROS 2 node on sim time has its own
+//!   `/clock` reader besides the user's) got each sample in one reader only, and its second
 //!   reader's key registration failed.
 //! - A node's own reader of its own topic had no crypto handle and made every send of
 //!   that topic fail for all readers.

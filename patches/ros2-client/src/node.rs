@@ -125,6 +125,8 @@ fn publish_parameter_changes(
 pub struct Spinner {
   ros_context: Context,
   stop_spin_receiver: async_channel::Receiver<()>,
+  // Rung by `Node::set_parameter`, so the loop follows a new `use_sim_time`.
+  parameters_changed: async_channel::Receiver<()>,
 
   readers_to_remote_writers: Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>>,
   writers_to_remote_readers: Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>>,
@@ -165,11 +167,10 @@ impl Spinner {
     let ros_discovery_stream = ros_discovery_reader.async_stream();
     pin_mut!(ros_discovery_stream);
 
-    let ros_clock_reader = self
-      .ros_context
-      .create_subscription::<builtin_interfaces::Time>(&self.clock_topic, None)?;
-    let ros_clock_stream = ros_clock_reader.async_stream();
-    pin_mut!(ros_clock_stream);
+    // `/clock` is read only while `use_sim_time` is true, with rclcpp's `ClockQoS`
+    // (best effort, keep last 1), as rclcpp's TimeSource does: a node on wall time
+    // does not make every `/clock` publisher send it one more sample per tick.
+    let mut ros_clock_reader: Option<Subscription<builtin_interfaces::Time>> = None;
 
     // These are Option< impl Stream<_>>
     let mut get_parameters_stream_opt = self
@@ -200,12 +201,35 @@ impl Spinner {
     info!("Spinner {} initialized", self.fully_qualified_node_name);
 
     loop {
+      // Follows `use_sim_time` as it is set: by the parameter services handled in
+      // this loop, or by `Node::set_parameter`, which wakes the loop.
+      if self.parameters.use_sim_time() != ros_clock_reader.is_some() {
+        ros_clock_reader = if self.parameters.use_sim_time() {
+          Some(
+            self
+              .ros_context
+              .create_subscription(&self.clock_topic, Some(QosProfile::subscription_default()))?,
+          )
+        } else {
+          None
+        };
+      }
+      let next_clock = async {
+        match &ros_clock_reader {
+          Some(reader) => reader.async_take().await,
+          None => std::future::pending().await,
+        }
+      }
+      .fuse();
+      pin_mut!(next_clock);
       futures::select! {
         _ = self.stop_spin_receiver.recv().fuse() => {
           break;
         }
 
-        clock_msg = ros_clock_stream.select_next_some() => {
+        _ = self.parameters_changed.recv().fuse() => {}
+
+        clock_msg = next_clock => {
           match clock_msg {
             Ok((time,_msg_info)) => {
               // Simulated time is updated internally unconditionally.
@@ -534,6 +558,7 @@ pub struct Node {
   // Keep track of ros_discovery_info
   external_nodes: Arc<Mutex<BTreeMap<Gid, Vec<NodeEntitiesInfo>>>>,
   stop_spin_sender: Option<async_channel::Sender<()>>,
+  parameters_changed_sender: Option<async_channel::Sender<()>>,
 
   // Channels to report discovery events to
   status_event_senders: Arc<Mutex<Vec<async_channel::Sender<NodeEvent>>>>,
@@ -588,6 +613,7 @@ impl Node {
       external_nodes: Arc::new(Mutex::new(BTreeMap::new())),
       suppress_node_info_updates: false,
       stop_spin_sender: None,
+      parameters_changed_sender: None,
       status_event_senders: Arc::new(Mutex::new(Vec::new())),
       rosout_writer: Arc::new(None), // Set below
       rosout_reader: None,
@@ -648,6 +674,8 @@ impl Node {
     }
     let (stop_spin_sender, stop_spin_receiver) = async_channel::bounded(1);
     self.stop_spin_sender = Some(stop_spin_sender);
+    let (parameters_changed_sender, parameters_changed) = async_channel::bounded(1);
+    self.parameters_changed_sender = Some(parameters_changed_sender);
 
     //TODO: Check QoS policies against ROS 2 specs or some reference.
     let service_qos = QosProfile::publisher_default().history(History::KeepLast { depth: 1 });
@@ -731,6 +759,7 @@ impl Node {
     Ok(Spinner {
       ros_context: self.ros_context.clone(),
       stop_spin_receiver,
+      parameters_changed,
       readers_to_remote_writers: Arc::clone(&self.readers_to_remote_writers),
       writers_to_remote_readers: Arc::clone(&self.writers_to_remote_readers),
       external_nodes: Arc::clone(&self.external_nodes),
@@ -832,6 +861,10 @@ impl Node {
   pub fn set_parameter(&self, name: &str, value: ParameterValue) -> Result<(), String> {
     let changes = self.parameters.set(name, value)?;
     self.publish_parameter_changes(changes);
+    if let Some(spinner) = &self.parameters_changed_sender {
+      // Full means a wake is already pending.
+      let _ = spinner.try_send(());
+    }
     Ok(())
   }
 

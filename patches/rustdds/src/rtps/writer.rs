@@ -151,6 +151,9 @@ pub(crate) struct WriterIngredients {
 pub(crate) struct Writer {
   pub endianness: Endianness,
   pub heartbeat_message_counter: atomic::AtomicI32,
+  /// Samples pushed since a piggybacked HEARTBEAT last asked for an ACKNACK
+  /// (see `push_heartbeat`).
+  pushes_since_ack_request: usize,
   /// Configures the mode in which the
   /// Writer operates. If
   /// pushMode==true, then the Writer
@@ -364,6 +367,7 @@ impl Writer {
     Self {
       endianness: Endianness::LittleEndian,
       heartbeat_message_counter: atomic::AtomicI32::new(1),
+      pushes_since_ack_request: 0,
       push_mode: true,
       push_only_to_acked_readers,
       heartbeat_period,
@@ -682,7 +686,7 @@ impl Writer {
         // The Control class never blocks, so the whole sample goes out.
         let _ = self.send_cache_change_from(
           cc,
-          true, // with a HEARTBEAT
+          Piggyback::RequestAck,
           Some(reader),
           SampleCursor::Fresh,
           TrafficClass::Control,
@@ -808,6 +812,7 @@ impl Writer {
 
     // One trailing HEARTBEAT for the whole datagram (reliable writers only).
     if hb_reserve > 0 {
+      let final_flag = self.push_heartbeat(count as usize) == Piggyback::Final;
       builder = builder.heartbeat_msg(
         self.entity_id(),
         self.send_buffer.first_change_sequence_number(),
@@ -815,8 +820,8 @@ impl Writer {
         self.next_heartbeat_count(),
         self.endianness,
         EntityId::UNKNOWN, // to all readers
-        false,             // final_flag: request ACKNACK
-        false,             // liveliness_flag
+        final_flag,
+        false, // liveliness_flag
       );
     }
 
@@ -834,6 +839,31 @@ impl Writer {
       Some(BatchOutcome::Blocked { blocked })
     } else {
       Some(BatchOutcome::Dropped { last_seq })
+    }
+  }
+
+  /// The HEARTBEAT to piggyback on `samples` freshly pushed samples. A reliable
+  /// user writer asks readers for an ACKNACK (final flag clear) only once per
+  /// `ACK_REQUEST_EVERY_PUSHES` samples; the HEARTBEATs between carry the final
+  /// flag, so a reader that has everything stays silent, and one that misses a
+  /// sample still NACKs it at once (RTPS 8.4.2.3.1, 8.4.12.1). Asking on every
+  /// sample made each reader send one ACKNACK datagram per sample, which the
+  /// writer's event loop had to wake for and process. Acknowledgements still
+  /// come at least that often, and the periodic HEARTBEAT asks as before.
+  /// Built-in (discovery) writers ask every time.
+  fn push_heartbeat(&mut self, samples: usize) -> Piggyback {
+    if !self.is_reliable() {
+      return Piggyback::None;
+    }
+    if self.my_guid.entity_id.kind().is_built_in() {
+      return Piggyback::RequestAck;
+    }
+    self.pushes_since_ack_request += samples;
+    if self.pushes_since_ack_request >= ACK_REQUEST_EVERY_PUSHES {
+      self.pushes_since_ack_request = 0;
+      Piggyback::RequestAck
+    } else {
+      Piggyback::Final
     }
   }
 
@@ -932,7 +962,7 @@ impl Writer {
         // per sample is pure overhead (an extra submessage built and sent for
         // every DATA). Only reliable writers piggyback a heartbeat here;
         // best-effort skips it entirely.
-        let send_also_heartbeat = self.is_reliable();
+        let heartbeat = self.push_heartbeat(1);
         let (_fragmented, progress) = {
           let target_reader_opt = match write_options.to_single_reader() {
             Some(guid) => self.readers.get(&guid), // Sending only to this reader
@@ -955,7 +985,7 @@ impl Writer {
           };
           self.send_cache_change_from(
             &cc,
-            send_also_heartbeat,
+            heartbeat,
             target_reader_opt,
             cursor,
             push_class,
@@ -1058,12 +1088,12 @@ impl Writer {
   fn send_cache_change(
     &self,
     cc: &CacheChange,
-    send_also_heartbeat: bool,
+    heartbeat: Piggyback,
     target_reader_opt: Option<&RtpsReaderProxy>,
   ) -> bool {
     let (fragmentation_needed, _progress) = self.send_cache_change_from(
       cc,
-      send_also_heartbeat,
+      heartbeat,
       target_reader_opt,
       SampleCursor::Fresh,
       TrafficClass::Control,
@@ -1078,7 +1108,7 @@ impl Writer {
   fn send_cache_change_from(
     &self,
     cc: &CacheChange,
-    send_also_heartbeat: bool,
+    heartbeat: Piggyback,
     target_reader_opt: Option<&RtpsReaderProxy>,
     cursor: SampleCursor,
     class: TrafficClass,
@@ -1109,7 +1139,7 @@ impl Writer {
     }
 
     let messages_to_send =
-      FragmentationIter::new_resume(self, cc, target_reader_opt, send_also_heartbeat, cursor);
+      FragmentationIter::new_resume(self, cc, target_reader_opt, heartbeat, cursor);
     let fragmentation_needed = messages_to_send.fragmentation_needed();
     let mut messages_to_send = messages_to_send.peekable();
     let mut burst_bytes = 0;
@@ -1615,7 +1645,7 @@ impl Writer {
         ts_active = false;
         // This emits the whole sample, including every fragment when it does
         // not fit one datagram. A later NACK_FRAG is what arms SendRepairFrags.
-        self.send_cache_change(&cc, false, Some(reader_proxy));
+        self.send_cache_change(&cc, Piggyback::None, Some(reader_proxy));
         round_bytes += payload_size + DATA_SUBMESSAGE_OVERHEAD;
       } else {
         let source_timestamp = cc.write_options.source_timestamp();
@@ -2476,12 +2506,27 @@ fn frags_per_datafrag(
   k.min(remaining_frags)
 }
 
+/// A reliable user writer asks for an ACKNACK on every this many pushed samples
+/// (see `Writer::push_heartbeat`).
+const ACK_REQUEST_EVERY_PUSHES: usize = 16;
+
+/// The HEARTBEAT sent after a sample's DATA (or last DATA_FRAG).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Piggyback {
+  /// None (best effort, or a repair).
+  None,
+  /// Final flag set: readers answer only if they miss something.
+  Final,
+  /// Final flag clear: every reader answers with an ACKNACK.
+  RequestAck,
+}
+
 struct FragmentationIter<'a> {
   writer: &'a Writer,
   cache_change: &'a CacheChange,
   target_reader_opt: Option<&'a RtpsReaderProxy>,
   reader_entity_id: EntityId,
-  send_heartbeat: bool,
+  heartbeat: Piggyback,
   finished: bool,
   state: FragmentationIterState,
 }
@@ -2496,7 +2541,7 @@ impl<'a> FragmentationIter<'a> {
     writer: &'a Writer,
     cache_change: &'a CacheChange,
     target_reader_opt: Option<&'a RtpsReaderProxy>,
-    send_heartbeat: bool,
+    heartbeat: Piggyback,
     cursor: SampleCursor,
   ) -> Self {
     // The EntityId of the destination
@@ -2532,7 +2577,7 @@ impl<'a> FragmentationIter<'a> {
       state,
       reader_entity_id,
       finished: false,
-      send_heartbeat,
+      heartbeat,
     }
   }
 
@@ -2573,7 +2618,7 @@ impl<'a> Iterator for FragmentationIter<'a> {
     let writer = self.writer;
     let target_reader_opt = self.target_reader_opt;
     let reader_entity_id = self.reader_entity_id;
-    let send_heartbeat = self.send_heartbeat;
+    let heartbeat = self.heartbeat;
 
     match &mut self.state {
       FragmentationIterState::Fragmented(state, data_size) => {
@@ -2679,8 +2724,8 @@ impl<'a> Iterator for FragmentationIter<'a> {
             self.finished = true;
 
             // Add HEARTBEAT message if needed
-            if send_heartbeat && !writer.like_stateless {
-              let final_flag = false; // false = request that readers acknowledge with ACKNACK.
+            if heartbeat != Piggyback::None && !writer.like_stateless {
+              let final_flag = heartbeat == Piggyback::Final;
               let liveliness_flag = false; // This is not a manual liveliness assertion (DDS API call), but side-effect of
                                            // writing new data.
               let hb_msg = MessageBuilder::new()
@@ -2738,8 +2783,8 @@ impl<'a> Iterator for FragmentationIter<'a> {
         );
 
         // Add HEARTBEAT if needed
-        if send_heartbeat && !writer.like_stateless {
-          let final_flag = false; // false = request that readers acknowledge with ACKNACK.
+        if heartbeat != Piggyback::None && !writer.like_stateless {
+          let final_flag = heartbeat == Piggyback::Final;
           let liveliness_flag = false; // This is not a manual liveliness assertion (DDS API call), but side-effect of
                                        // writing new data.
           message_builder = message_builder.heartbeat_msg(
@@ -3254,13 +3299,63 @@ mod tests {
         .unwrap();
       let (fragmented, progress) = f.writer.send_cache_change_from(
         &cc,
-        true,
+        Piggyback::RequestAck,
         None,
         SampleCursor::Fresh,
         TrafficClass::Control,
         false,
       );
       assert!(fragmented && matches!(progress, SendProgress::Complete));
+    }
+
+    // Final flags of the HEARTBEATs in the RTPS datagrams `socket` received.
+    fn heartbeat_final_flags(socket: &std::net::UdpSocket) -> Vec<bool> {
+      let mut flags = Vec::new();
+      let mut buf = [0u8; 65536];
+      while let Ok(len) = socket.recv(&mut buf) {
+        let mut at = 20; // RTPS header
+        while at + 4 <= len {
+          let (id, submessage_flags) = (buf[at], buf[at + 1]);
+          let length = if submessage_flags & 1 == 1 {
+            u16::from_le_bytes([buf[at + 2], buf[at + 3]])
+          } else {
+            u16::from_be_bytes([buf[at + 2], buf[at + 3]])
+          } as usize;
+          if id == 0x07 {
+            flags.push(submessage_flags & 0x02 != 0);
+          }
+          at += 4 + length;
+        }
+      }
+      flags
+    }
+
+    // A reliable user writer asks for an ACKNACK on every 16th pushed sample
+    // only; the HEARTBEATs piggybacked on the others carry the final flag.
+    #[test]
+    fn pushed_samples_request_an_acknack_once_per_sixteen() {
+      let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+      socket
+        .set_read_timeout(Some(StdDuration::from_millis(200)))
+        .unwrap();
+      let mut f = Fixture::user(0, 8, Some(socket.local_addr().unwrap()));
+      for _ in 0..40 {
+        let data = DDSData::new(SerializedPayload::new(
+          RepresentationIdentifier::CDR_LE,
+          vec![0; 8],
+        ));
+        let admitted = f.writer.send_buffer.admit_blocking(
+          WriteOptions::default(),
+          data,
+          Some(StdDuration::ZERO),
+        );
+        assert!(matches!(admitted, Admission::Admitted(_)));
+        f.writer.process_pending();
+      }
+      let finals = heartbeat_final_flags(&socket);
+      assert_eq!(finals.len(), 40, "one HEARTBEAT per pushed sample");
+      let asking: Vec<usize> = (0..40).filter(|&i| !finals[i]).collect();
+      assert_eq!(asking, vec![15, 31]);
     }
 
     // A repeated ACKNACK count is a copy and changes nothing; a new count does.

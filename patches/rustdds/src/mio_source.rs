@@ -3,6 +3,12 @@
 // 0.8 `Source` when that optional compatibility feature is enabled.
 //
 // The internal reactors do not use this channel.
+//
+// A byte goes through the socketpair only while the source is registered with a
+// poll, and only when none is already waiting to be drained: the reader signals
+// every cache change, and a take drains before reading, so otherwise every
+// sample cost a send(2) and every take a recv(2), even for applications that
+// wait on the async stream (its own waker) and never poll this source.
 
 macro_rules! socketpair_bridge {
   ($modname:ident, $mio:ident) => {
@@ -10,7 +16,10 @@ macro_rules! socketpair_bridge {
       use std::{
         io,
         io::{Read, Write},
-        sync::{Arc, Mutex},
+        sync::{
+          atomic::{AtomicBool, Ordering},
+          Arc, Mutex,
+        },
       };
       #[cfg(not(target_os = "windows"))]
       use std::os::fd::OwnedFd;
@@ -24,11 +33,43 @@ macro_rules! socketpair_bridge {
 
       pub struct Source {
         rec: Mutex<$mio::net::TcpStream>,
+        shared: Arc<Shared>,
       }
 
       #[derive(Clone)]
       pub struct Sender {
-        send: Arc<Mutex<$mio::net::TcpStream>>,
+        shared: Arc<Shared>,
+      }
+
+      /// The sending end and its flags, shared by both ends (see the module
+      /// comment).
+      struct Shared {
+        send: Mutex<$mio::net::TcpStream>,
+        /// The source is registered with a poll.
+        registered: AtomicBool,
+        /// A byte was sent and not drained yet. Set before the byte is written
+        /// and cleared before it is read, so no signal is lost.
+        signalled: AtomicBool,
+      }
+
+      impl Shared {
+        fn new(send: $mio::net::TcpStream) -> Arc<Self> {
+          Arc::new(Self {
+            send: Mutex::new(send),
+            registered: AtomicBool::new(false),
+            signalled: AtomicBool::new(false),
+          })
+        }
+
+        fn signal(&self) {
+          if !self.registered.load(Ordering::SeqCst) || self.signalled.swap(true, Ordering::SeqCst) {
+            return;
+          }
+          match self.send.lock().unwrap().write(&[0xcc]) {
+            Ok(_b) => {}
+            Err(e) => info!("PollEventSender.send: {e}"),
+          }
+        }
       }
 
       #[cfg(not(target_os = "windows"))]
@@ -47,13 +88,13 @@ macro_rules! socketpair_bridge {
         let rec = $mio::net::TcpStream::from_std(std::net::TcpStream::from(OwnedFd::from(rec_sps)));
         let send =
           $mio::net::TcpStream::from_std(std::net::TcpStream::from(OwnedFd::from(send_sps)));
+        let shared = Shared::new(send);
         Ok((
           Source {
             rec: Mutex::new(rec),
+            shared: Arc::clone(&shared),
           },
-          Sender {
-            send: Arc::new(Mutex::new(send)),
-          },
+          Sender { shared },
         ))
       }
 
@@ -69,27 +110,27 @@ macro_rules! socketpair_bridge {
         }
         let (send, _addr_send) = accepted?;
         debug!("IPC socket: {addr:#?} <-> {_addr_send:#?}");
+        let shared = Shared::new(send);
         Ok((
           Source {
             rec: Mutex::new(rec),
+            shared: Arc::clone(&shared),
           },
-          Sender {
-            send: Arc::new(Mutex::new(send)),
-          },
+          Sender { shared },
         ))
       }
 
       impl Sender {
         pub fn send(&self) {
-          match self.send.lock().unwrap().write(&[0xcc]) {
-            Ok(_b) => {}
-            Err(e) => info!("PollEventSender.send: {e}"),
-          }
+          self.shared.signal();
         }
       }
 
       impl Source {
         pub fn drain(&self) {
+          if !self.shared.signalled.swap(false, Ordering::SeqCst) {
+            return;
+          }
           let mut buf = Vec::with_capacity(16);
           match self.rec.lock().unwrap().read_to_end(&mut buf) {
             Ok(_) => (),
@@ -112,7 +153,12 @@ macro_rules! socketpair_bridge {
             .rec
             .lock()
             .unwrap()
-            .register(registry, token, interests)
+            .register(registry, token, interests)?;
+          // Nothing was signalled while unregistered: signal once, so the
+          // poll looks at what arrived before.
+          self.shared.registered.store(true, Ordering::SeqCst);
+          self.shared.signal();
+          Ok(())
         }
 
         fn reregister(
@@ -129,6 +175,7 @@ macro_rules! socketpair_bridge {
         }
 
         fn deregister(&mut self, registry: &$mio::Registry) -> io::Result<()> {
+          self.shared.registered.store(false, Ordering::SeqCst);
           self.rec.lock().unwrap().deregister(registry)
         }
       }
@@ -309,5 +356,47 @@ impl mio_06::Evented for NotificationReceiver {
 
   fn deregister(&self, poll: &mio_06::Poll) -> std::io::Result<()> {
     self.legacy_receiver.deregister(poll)
+  }
+}
+
+#[cfg(test)]
+mod tests {
+  use std::time::Duration;
+
+  use mio1::{Events, Interest, Poll, Token};
+
+  use super::make_poll_channel;
+
+  fn readable_events(poll: &mut Poll) -> usize {
+    let mut events = Events::with_capacity(4);
+    poll
+      .poll(&mut events, Some(Duration::from_millis(100)))
+      .unwrap();
+    events.iter().filter(|e| e.is_readable()).count()
+  }
+
+  // Signals before registration cost nothing and are not lost: registering
+  // signals once. Many signals before a drain make one readiness event, and a
+  // signal after a drain makes a new one.
+  #[test]
+  fn signals_wake_a_registered_poll_once_per_drain() {
+    let (mut source, sender) = make_poll_channel().unwrap();
+    sender.send();
+    sender.send();
+    let mut poll = Poll::new().unwrap();
+    poll
+      .registry()
+      .register(&mut source, Token(1), Interest::READABLE)
+      .unwrap();
+    assert_eq!(readable_events(&mut poll), 1, "the registration signal");
+    source.drain();
+    assert_eq!(readable_events(&mut poll), 0);
+    for _ in 0..5 {
+      sender.send();
+    }
+    assert_eq!(readable_events(&mut poll), 1);
+    source.drain();
+    sender.send();
+    assert_eq!(readable_events(&mut poll), 1, "a signal after a drain was lost");
   }
 }

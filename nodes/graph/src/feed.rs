@@ -151,9 +151,11 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> Feed<P> for Topic
     }
 }
 
-/// Files everything waiting on `feeds`; if nothing was, sleeps until the sample the
-/// oldest pending step lacks arrives (or the first feed's, or `timeout`), so an idle loop
-/// never polls. Returns whether anything arrived.
+/// Files everything waiting on `feeds`; if nothing was, sleeps until the last of the
+/// samples the oldest pending step lacks arrives (or the last feed's, or `timeout`), so an
+/// idle loop never polls. Feeds are in the order their topics are published, so a step
+/// usually wakes this thread once, when its last sample is in, instead of once per sample.
+/// Returns whether anything arrived.
 pub fn drain_or_wait<P: StepParts>(
     feeds: &[Box<dyn Feed<P>>],
     joiner: &mut StepJoiner<P>,
@@ -165,10 +167,10 @@ pub fn drain_or_wait<P: StepParts>(
     }
     let lacking = joiner
         .first_missing()
-        .and_then(|(_, missing)| missing.first().copied());
+        .and_then(|(_, missing)| missing.last().copied());
     let feed = lacking
         .and_then(|topic| feeds.iter().find(|f| f.topic() == topic))
-        .or(feeds.first());
+        .or(feeds.last());
     feed.is_some_and(|f| f.wait(joiner, timeout))
 }
 

@@ -81,6 +81,11 @@ fn acknowledge(ack: &Publisher<Clock>, acked: &mut Option<u64>, landed: Option<u
     }
 }
 
+/// How long the recorder lets samples gather after a wake-up that took some. Far below
+/// the simulator's acknowledgement window (hundreds of steps), so it never holds the run
+/// up; at thousands of steps per second it takes several steps per wake-up.
+const GATHER: Duration = Duration::from_millis(1);
+
 /// Runs the recorder node until every step is written or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let specs = node_param_specs("causal_arm_recorder")?;
@@ -139,6 +144,9 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         acknowledge(&ack, &mut acked, sink.landed_stamp());
         if arrived {
             last_activity = Instant::now();
+            // Let the next steps gather (the simulator runs ahead within its window), so
+            // one wake-up takes several steps instead of every sample waking this thread.
+            std::thread::sleep(GATHER);
         } else if last_activity.elapsed() > timeout {
             result = Err(anyhow::anyhow!(
                 "nothing received for {timeout:?} after {written} of {total} steps; bag finalized with the complete steps"

@@ -127,6 +127,13 @@ macro_rules! socketpair_bridge {
       }
 
       impl Source {
+        /// Signal bytes waiting in the socketpair.
+        #[cfg(test)]
+        pub fn waiting_bytes(&self) -> usize {
+          let mut buf = [0u8; 64];
+          self.rec.lock().unwrap().peek(&mut buf).unwrap_or(0)
+        }
+
         pub fn drain(&self) {
           if !self.shared.signalled.swap(false, Ordering::SeqCst) {
             return;
@@ -383,6 +390,7 @@ mod tests {
     let (mut source, sender) = make_poll_channel().unwrap();
     sender.send();
     sender.send();
+    assert_eq!(source.mio1.waiting_bytes(), 0, "a send(2) per signal while unregistered");
     let mut poll = Poll::new().unwrap();
     poll
       .registry()
@@ -394,6 +402,7 @@ mod tests {
     for _ in 0..5 {
       sender.send();
     }
+    assert_eq!(source.mio1.waiting_bytes(), 1, "one byte per drain, not per signal");
     assert_eq!(readable_events(&mut poll), 1);
     source.drain();
     sender.send();

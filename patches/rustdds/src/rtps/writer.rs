@@ -2978,10 +2978,11 @@ mod tests {
       },
       discovery::discovery::Discovery,
       messages::submessages::{
-        elements::serialized_payload::SerializedPayload, submessages::AckNack,
+        elements::serialized_payload::SerializedPayload,
+        submessages::{AckNack, WriterSubmessage, HEARTBEAT_Flags},
       },
       polling::new_shared_timer,
-      rtps::writer_send_buffer::Admission,
+      rtps::{writer_send_buffer::Admission, SubmessageBody},
       structure::{guid::EntityKind, sequence_number::SequenceNumberSet},
       RepresentationIdentifier,
     };
@@ -3308,54 +3309,46 @@ mod tests {
       assert!(fragmented && matches!(progress, SendProgress::Complete));
     }
 
-    // Final flags of the HEARTBEATs in the RTPS datagrams `socket` received.
-    fn heartbeat_final_flags(socket: &std::net::UdpSocket) -> Vec<bool> {
-      let mut flags = Vec::new();
-      let mut buf = [0u8; 65536];
-      while let Ok(len) = socket.recv(&mut buf) {
-        let mut at = 20; // RTPS header
-        while at + 4 <= len {
-          let (id, submessage_flags) = (buf[at], buf[at + 1]);
-          let length = if submessage_flags & 1 == 1 {
-            u16::from_le_bytes([buf[at + 2], buf[at + 3]])
-          } else {
-            u16::from_be_bytes([buf[at + 2], buf[at + 3]])
-          } as usize;
-          if id == 0x07 {
-            flags.push(submessage_flags & 0x02 != 0);
+    // The final flags of the HEARTBEATs piggybacked on `samples` pushed samples,
+    // as the writer builds their messages.
+    fn piggybacked_final_flags(f: &mut Fixture, samples: usize) -> Vec<bool> {
+      let cc = f
+        .writer
+        .send_buffer
+        .get_by_sn(SequenceNumber::new(1))
+        .unwrap();
+      let mut finals = Vec::new();
+      for _ in 0..samples {
+        let heartbeat = f.writer.push_heartbeat(1);
+        let messages: Vec<_> =
+          FragmentationIter::new_resume(&f.writer, &cc, None, heartbeat, SampleCursor::Fresh)
+            .collect();
+        for (_, message) in messages {
+          for submessage in message.submessages {
+            if let SubmessageBody::Writer(WriterSubmessage::Heartbeat(_, flags)) = submessage.body {
+              finals.push(flags.contains(HEARTBEAT_Flags::Final));
+            }
           }
-          at += 4 + length;
         }
       }
-      flags
+      finals
     }
 
     // A reliable user writer asks for an ACKNACK on every 16th pushed sample
-    // only; the HEARTBEATs piggybacked on the others carry the final flag.
+    // only; the HEARTBEATs piggybacked on the others carry the final flag. A
+    // built-in (discovery) writer asks every time.
     #[test]
     fn pushed_samples_request_an_acknack_once_per_sixteen() {
-      let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-      socket
-        .set_read_timeout(Some(StdDuration::from_millis(200)))
-        .unwrap();
-      let mut f = Fixture::user(0, 8, Some(socket.local_addr().unwrap()));
-      for _ in 0..40 {
-        let data = DDSData::new(SerializedPayload::new(
-          RepresentationIdentifier::CDR_LE,
-          vec![0; 8],
-        ));
-        let admitted = f.writer.send_buffer.admit_blocking(
-          WriteOptions::default(),
-          data,
-          Some(StdDuration::ZERO),
-        );
-        assert!(matches!(admitted, Admission::Admitted(_)));
-        f.writer.process_pending();
-      }
-      let finals = heartbeat_final_flags(&socket);
+      let mut user = Fixture::user(1, 8, None);
+      let finals = piggybacked_final_flags(&mut user, 40);
       assert_eq!(finals.len(), 40, "one HEARTBEAT per pushed sample");
       let asking: Vec<usize> = (0..40).filter(|&i| !finals[i]).collect();
       assert_eq!(asking, vec![15, 31]);
+
+      let mut sedp = Fixture::sedp(1, 8);
+      assert!(piggybacked_final_flags(&mut sedp, 20)
+        .iter()
+        .all(|is_final| !is_final));
     }
 
     // A repeated ACKNACK count is a copy and changes nothing; a new count does.

@@ -48,7 +48,7 @@ macro_rules! socketpair_bridge {
         /// The source is registered with a poll.
         registered: AtomicBool,
         /// A byte was sent and not drained yet. Set before the byte is written
-        /// and cleared before it is read, so no signal is lost.
+        /// and cleared after it is read (see `Source::drain`).
         signalled: AtomicBool,
       }
 
@@ -135,7 +135,7 @@ macro_rules! socketpair_bridge {
         }
 
         pub fn drain(&self) {
-          if !self.shared.signalled.swap(false, Ordering::SeqCst) {
+          if !self.shared.signalled.load(Ordering::SeqCst) {
             return;
           }
           let mut buf = Vec::with_capacity(16);
@@ -146,6 +146,11 @@ macro_rules! socketpair_bridge {
               other_kind => info!("PollEventSource.drain(): {other_kind}"),
             },
           }
+          // Cleared only after reading: a signal between the read and here found
+          // the flag set and wrote nothing, but its change is already stored for
+          // the take that follows this drain; clearing first would let the read
+          // swallow a newer byte and leave the flag set with nothing to wake a poll.
+          self.shared.signalled.store(false, Ordering::SeqCst);
         }
       }
 

@@ -146,6 +146,40 @@ def test_ros2_param_describe_shows_descriptions_ranges_and_choices(trainer_node)
     assert nope.type == 0
 
 
+def test_a_reply_waits_for_the_clients_reply_reader(trainer_node):
+    """The discovery race of a client's first call: its request reaches the server before the
+    server has matched the client's reply reader. A volatile reply written then reaches no
+    one, and the client waits for good. The server now waits (up to 1 s) for a reply reader
+    of the requesting participant, as rmw_cyclonedds and rmw_fastrtps do
+    (patches/ros2-client-server-waits-for-reply-reader.diff). Here the client makes its
+    reply reader only after its request went out, so the race is certain, not a matter of
+    luck: without the wait no reply arrives."""
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    participant = DomainParticipant(41)
+    qos = idl.ros_default_qos(depth=100)
+    writer = DataWriter(participant, Topic(participant, "rq/trainer/model_infoRequest", idl.GetModelInfoRequest), qos=qos)
+    deadline = time.monotonic() + 20
+    while not writer.get_matched_subscriptions():
+        assert time.monotonic() < deadline, "the trainer's request reader never matched"
+        time.sleep(0.05)
+    guid = int.from_bytes(writer.guid.bytes[:8], "little")
+    writer.write(idl.GetModelInfoRequest(client_guid=guid, sequence_number=1, model="fm"))
+    time.sleep(0.25)
+    reader = DataReader(participant, Topic(participant, "rr/trainer/model_infoReply", idl.GetModelInfoReply), qos=qos)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        replies = [r for r in reader.take(N=16) if r.client_guid == guid and r.sequence_number == 1]
+        if replies:
+            assert replies[0].success and replies[0].models == ["fm", "im-mono"], replies[0]
+            return
+        time.sleep(0.01)
+    pytest.fail("no reply: it was sent before the server matched the client's reply reader")
+
+
 def test_node_refuses_missing_and_corrupt_model_dirs(causal_arm_bin, model_dir, tmp_path, private_netns):
     binary = causal_arm_bin.parent / "causal_arm_trainer"
     r = subprocess.run([str(binary)], capture_output=True, text=True, timeout=30)

@@ -781,6 +781,12 @@ impl Node {
     self.stop_spin_sender.is_some()
   }
 
+  // The matches of this node's writers with remote readers, as the Spinner
+  // records them (servers wait on it before replying).
+  pub(crate) fn writers_to_remote_readers(&self) -> Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>> {
+    Arc::clone(&self.writers_to_remote_readers)
+  }
+
   // Generates ROS2 node info from added readers and writers.
   fn generate_node_info(&self) -> NodeEntitiesInfo {
     let mut node_info = NodeEntitiesInfo::new(self.node_name.clone());

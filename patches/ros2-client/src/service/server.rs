@@ -1,5 +1,10 @@
 #[cfg(any(feature = "mio_06", feature = "mio_1"))]
 use std::io;
+use std::{
+  collections::{BTreeMap, BTreeSet},
+  sync::{Arc, Mutex},
+  time::{Duration, Instant},
+};
 
 #[cfg(feature = "mio_06")]
 use rustdds::mio::{Evented, Poll, PollOpt, Ready, Token};
@@ -30,6 +35,21 @@ where
   service_mapping: ServiceMapping,
   request_receiver: SimpleDataReaderR<RequestWrapper<Req>>,
   response_sender: DataWriterR<ResponseWrapper<Resp>>,
+  // The node's matches of its writers with remote readers, kept by its Spinner;
+  // `None` when the node had no Spinner when this server was made.
+  matched_readers: Option<Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>>>,
+}
+
+/// How long [`Server::send_response`] waits for the requesting client's reply
+/// reader to be matched before it sends anyway. rmw_cyclonedds and rmw_fastrtps
+/// wait 100 ms; discovery on a loaded machine can take longer.
+pub const REPLY_READER_WAIT: Duration = Duration::from_secs(1);
+
+// Whether `reader` belongs to the participant that sent the request `client`
+// names. The Cyclone mapping carries only the first 8 octets of the client's
+// GUID prefix (the rest of its id is its own counter), so that much is compared.
+fn same_participant(reader: &GUID, client: &GUID) -> bool {
+  reader.prefix.as_ref()[..8] == client.prefix.as_ref()[..8]
 }
 
 impl<Req, Resp> Server<Req, Resp>
@@ -61,10 +81,14 @@ where
       response_topic.name()
     );
 
+    let matched_readers = node
+      .have_spinner()
+      .then(|| node.writers_to_remote_readers());
     Ok(Server::<Req, Resp> {
       service_mapping,
       request_receiver,
       response_sender,
+      matched_readers,
     })
   }
 
@@ -86,9 +110,43 @@ where
     } // match
   }
 
+  /// Whether the reply writer has matched a reader of the client that sent
+  /// `rmw_req_id`; `None` when matches are not tracked (no Spinner).
+  fn client_reader_matched(&self, rmw_req_id: &RmwRequestId) -> Option<bool> {
+    let matched = self.matched_readers.as_ref()?.lock().unwrap();
+    let client = GUID::from(rmw_req_id.writer_gid);
+    let readers = matched.get(&self.response_sender.guid());
+    Some(readers.is_some_and(|readers| readers.iter().any(|r| same_participant(r, &client))))
+  }
+
+  /// Waits, up to [`REPLY_READER_WAIT`], until the reply writer has matched a
+  /// reader of the requesting client. A client's first request can arrive
+  /// before this side of discovery is done; a reply written then reaches no
+  /// reader, and a volatile reader never gets it. Returns whether it matched.
+  fn wait_for_client_reader(&self, rmw_req_id: &RmwRequestId) -> bool {
+    let deadline = Instant::now() + REPLY_READER_WAIT;
+    loop {
+      match self.client_reader_matched(rmw_req_id) {
+        None | Some(true) => return true,
+        Some(false) if Instant::now() >= deadline => return false,
+        Some(false) => std::thread::sleep(Duration::from_millis(2)),
+      }
+    }
+  }
+
   /// Send response to request by Client.
   /// rmw_req_id identifies request being responded.
+  ///
+  /// When the node has a Spinner, this first waits (up to
+  /// [`REPLY_READER_WAIT`]) until a reply reader of the requesting client is
+  /// matched, as rmw_cyclonedds and rmw_fastrtps do, then sends in any case.
   pub fn send_response(&self, rmw_req_id: RmwRequestId, response: Resp) -> WriteResult<(), ()> {
+    if !self.wait_for_client_reader(&rmw_req_id) {
+      warn!(
+        "send_response: no reply reader of client {:?} matched within {REPLY_READER_WAIT:?}; sending anyway",
+        rmw_req_id.writer_gid
+      );
+    }
     let resp_wrapper = ResponseWrapper::<Resp>::new(
       self.service_mapping,
       rmw_req_id,
@@ -240,5 +298,25 @@ where
 
   fn deregister(&mut self, registry: &mio1::Registry) -> io::Result<()> {
     mio1::event::Source::deregister(&mut self.request_receiver, registry)
+  }
+}
+
+#[cfg(test)]
+mod tests {
+  use super::*;
+
+  fn guid(prefix: [u8; 12]) -> GUID {
+    GUID::from_bytes(std::array::from_fn(|i| if i < 12 { prefix[i] } else { 0 }))
+  }
+
+  #[test]
+  fn a_client_is_recognised_by_the_first_eight_octets_of_its_prefix() {
+    let reader = guid([1, 15, 2, 3, 4, 5, 6, 7, 0, 0, 0, 9]);
+    // The Cyclone mapping: the client's own counter in the last four octets.
+    let cyclone_client = guid([1, 15, 2, 3, 4, 5, 6, 7, 0xaa, 0xbb, 0xcc, 0xdd]);
+    assert!(same_participant(&reader, &cyclone_client));
+    assert!(same_participant(&reader, &reader));
+    let other = guid([1, 15, 2, 3, 4, 5, 6, 8, 0, 0, 0, 9]);
+    assert!(!same_participant(&reader, &other));
   }
 }

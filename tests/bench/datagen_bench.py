@@ -15,7 +15,10 @@ Runs, in one go on this machine:
     normal joint targets (sigma 0.35, clipped to the limits), POSITION_CONTROL with the
     URDF forces, 10 substeps at 240 Hz, reading joint states and the end-effector pose
     each step (no recording, so it is a lower bound on PyBullet's cost).
-Prints a table with steps/s and ratios. Usage:
+Prints a table with steps/s and ratios (every run timed whole, start-up included), then the
+DDS graphs again while stepping only (from the simulators' "starting" and "done" log lines:
+the PyBullet loop is timed without connecting and loading its URDF) with the steps requested
+but missing from the bag. Usage:
   tests/netns-run target/pyvenv/bin/python tests/bench/datagen_bench.py [--steps N] [--bin target/release/causal-arm]
 Run it on a quiet machine (nothing else building).
 """
@@ -63,17 +66,43 @@ def in_private_netns() -> bool:
         return [line.split(":")[0].strip() for line in f.readlines()[2:]] == ["lo"]
 
 
-def ours_dds(binary: str, steps: int, shards: int = 1) -> float:
-    """Whole `launch` wall time, including process start-up and discovery (~1 s)."""
+SIM_LOG = re.compile(r"^(\S+Z)\s+INFO simulator (starting|done)", re.M)
+RECORDED = re.compile(r"\((\d+) of (\d+) steps over DDS")
+
+
+def stepping_seconds(log: str) -> float:
+    """Wall time from the first simulator's first step to the last one's end (each logs
+    "simulator starting" once its readers matched, and "simulator done" once the recorder
+    acknowledged its last step): the launch without process start-up and discovery, as the
+    PyBullet loop is timed without connecting and loading the URDF."""
+    import datetime
+
+    stamps = {"starting": [], "done": []}
+    for stamp, what in SIM_LOG.findall(log):
+        stamps[what].append(datetime.datetime.fromisoformat(stamp.replace("Z", "+00:00")))
+    if not stamps["starting"] or len(stamps["done"]) != len(stamps["starting"]):
+        raise RuntimeError(f"simulator start/done lines missing from the launch log:\n{log[-2000:]}")
+    return (max(stamps["done"]) - min(stamps["starting"])).total_seconds()
+
+
+def ours_dds(binary: str, steps: int, shards: int = 1) -> tuple[float, float, int]:
+    """(steps/s over the whole `launch`, start-up and discovery included (~1 s); steps/s
+    while stepping; steps requested but not in the bag)."""
     import os
 
     with tempfile.TemporaryDirectory() as tmp:
         out = pathlib.Path(tmp) / "bag"
-        env = {**os.environ, "ROS_DOMAIN_ID": "42", "RUST_LOG": "error"}
+        env = {**os.environ, "ROS_DOMAIN_ID": "42", "RUST_LOG": "info"}
         start = time.perf_counter()
-        subprocess.run([binary, "launch", "exp1", "--steps", str(steps), "--seed", "1", "--shards", str(shards),
-                        "--out", str(out)], check=True, capture_output=True, text=True, env=env)
-        return steps / (time.perf_counter() - start)
+        run = subprocess.run([binary, "launch", "exp1", "--steps", str(steps), "--seed", "1", "--shards",
+                              str(shards), "--out", str(out)], check=True, capture_output=True, text=True, env=env)
+        whole = time.perf_counter() - start
+        log = run.stdout + run.stderr
+        recorded = RECORDED.findall(log)
+        if len(recorded) != shards:
+            raise RuntimeError(f"expected {shards} bag lines, got {recorded}")
+        lost = sum(int(total) - int(got) for got, total in recorded)
+        return steps / whole, steps / stepping_seconds(log), lost
 
 
 def ours(binary: str, experiment: str, steps: int, shards: int = 1, arm: str = "kinematic") -> float:
@@ -102,15 +131,22 @@ def main():
         ("causal-arm generate exp1 --shards 2 (2 threads)", ours(args.bin, "exp1", args.steps, 2)),
         ("causal-arm generate exp2 --shards 2 (2 threads)", ours(args.bin, "exp2", args.steps, 2)),
     ]
+    graphs = []
     if in_private_netns():
-        rows.append(("causal-arm launch exp1 (3 DDS processes, lock-step)", ours_dds(args.bin, args.steps)))
-        rows.append(("causal-arm launch exp1 --shards 2 (2 graphs)", ours_dds(args.bin, args.steps, 2)))
+        graphs.append(("causal-arm launch exp1 (3 DDS processes, lock-step)", ours_dds(args.bin, args.steps)))
+        graphs.append(("causal-arm launch exp1 --shards 2 (2 graphs)", ours_dds(args.bin, args.steps, 2)))
     else:
-        print("not inside tests/netns-run: skipping the DDS graph row")
+        print("not inside tests/netns-run: skipping the DDS graph rows")
+    rows += [(name, whole) for name, (whole, _, _) in graphs]
     ref = rows[0][1]
     print(f"\n{'run':<52} {'steps/s':>10} {'vs PyBullet':>12}")
     for name, rate in rows:
         print(f"{name:<52} {rate:>10.0f} {rate / ref:>11.2f}x")
+    if graphs:
+        print("\nThe DDS graphs while stepping (start-up and discovery left out, as the PyBullet loop's are):")
+        print(f"{'run':<52} {'steps/s':>10} {'vs PyBullet':>12} {'steps lost':>11}")
+        for name, (_, stepping, lost) in graphs:
+            print(f"{name:<52} {stepping:>10.0f} {stepping / ref:>11.2f}x {lost:>11}")
     by_name = dict(rows)
     for experiment in ["exp1", "exp2"]:
         one = by_name[f"causal-arm generate {experiment} (in-process, writes bag)"]

@@ -151,6 +151,9 @@ pub(crate) struct WriterIngredients {
 pub(crate) struct Writer {
   pub endianness: Endianness,
   pub heartbeat_message_counter: atomic::AtomicI32,
+  /// Samples pushed since a piggybacked HEARTBEAT last asked for an ACKNACK
+  /// (see `push_heartbeat`).
+  pushes_since_ack_request: usize,
   /// Configures the mode in which the
   /// Writer operates. If
   /// pushMode==true, then the Writer
@@ -364,6 +367,7 @@ impl Writer {
     Self {
       endianness: Endianness::LittleEndian,
       heartbeat_message_counter: atomic::AtomicI32::new(1),
+      pushes_since_ack_request: 0,
       push_mode: true,
       push_only_to_acked_readers,
       heartbeat_period,
@@ -682,7 +686,7 @@ impl Writer {
         // The Control class never blocks, so the whole sample goes out.
         let _ = self.send_cache_change_from(
           cc,
-          true, // with a HEARTBEAT
+          Piggyback::RequestAck,
           Some(reader),
           SampleCursor::Fresh,
           TrafficClass::Control,
@@ -808,6 +812,7 @@ impl Writer {
 
     // One trailing HEARTBEAT for the whole datagram (reliable writers only).
     if hb_reserve > 0 {
+      let final_flag = self.push_heartbeat(count as usize) == Piggyback::Final;
       builder = builder.heartbeat_msg(
         self.entity_id(),
         self.send_buffer.first_change_sequence_number(),
@@ -815,8 +820,8 @@ impl Writer {
         self.next_heartbeat_count(),
         self.endianness,
         EntityId::UNKNOWN, // to all readers
-        false,             // final_flag: request ACKNACK
-        false,             // liveliness_flag
+        final_flag,
+        false, // liveliness_flag
       );
     }
 
@@ -834,6 +839,33 @@ impl Writer {
       Some(BatchOutcome::Blocked { blocked })
     } else {
       Some(BatchOutcome::Dropped { last_seq })
+    }
+  }
+
+  /// The HEARTBEAT to piggyback on `samples` freshly pushed samples. A reliable
+  /// user writer asks readers for an ACKNACK (final flag clear) only once per
+  /// `ACK_REQUEST_EVERY_PUSHES` samples; the HEARTBEATs between carry the final
+  /// flag, so a reader that has everything stays silent, and one that misses a
+  /// sample still NACKs it at once (RTPS 8.4.2.3.1, 8.4.12.1). Asking on every
+  /// sample made each reader send one ACKNACK datagram per sample, which the
+  /// writer's event loop had to wake for and process. Acknowledgements still
+  /// come at least that often, and the periodic HEARTBEAT asks as before.
+  /// Built-in (discovery) writers ask every time, and so do writers under DDS
+  /// Security: they skip a reader whose keys are still in flight and repair it
+  /// when it ACKNACKs, which should not wait for the 16th sample.
+  fn push_heartbeat(&mut self, samples: usize) -> Piggyback {
+    if !self.is_reliable() {
+      return Piggyback::None;
+    }
+    if self.my_guid.entity_id.kind().is_built_in() || self.security_plugins.is_some() {
+      return Piggyback::RequestAck;
+    }
+    self.pushes_since_ack_request += samples;
+    if self.pushes_since_ack_request >= ACK_REQUEST_EVERY_PUSHES {
+      self.pushes_since_ack_request = 0;
+      Piggyback::RequestAck
+    } else {
+      Piggyback::Final
     }
   }
 
@@ -932,7 +964,7 @@ impl Writer {
         // per sample is pure overhead (an extra submessage built and sent for
         // every DATA). Only reliable writers piggyback a heartbeat here;
         // best-effort skips it entirely.
-        let send_also_heartbeat = self.is_reliable();
+        let heartbeat = self.push_heartbeat(1);
         let (_fragmented, progress) = {
           let target_reader_opt = match write_options.to_single_reader() {
             Some(guid) => self.readers.get(&guid), // Sending only to this reader
@@ -955,7 +987,7 @@ impl Writer {
           };
           self.send_cache_change_from(
             &cc,
-            send_also_heartbeat,
+            heartbeat,
             target_reader_opt,
             cursor,
             push_class,
@@ -1058,12 +1090,12 @@ impl Writer {
   fn send_cache_change(
     &self,
     cc: &CacheChange,
-    send_also_heartbeat: bool,
+    heartbeat: Piggyback,
     target_reader_opt: Option<&RtpsReaderProxy>,
   ) -> bool {
     let (fragmentation_needed, _progress) = self.send_cache_change_from(
       cc,
-      send_also_heartbeat,
+      heartbeat,
       target_reader_opt,
       SampleCursor::Fresh,
       TrafficClass::Control,
@@ -1078,7 +1110,7 @@ impl Writer {
   fn send_cache_change_from(
     &self,
     cc: &CacheChange,
-    send_also_heartbeat: bool,
+    heartbeat: Piggyback,
     target_reader_opt: Option<&RtpsReaderProxy>,
     cursor: SampleCursor,
     class: TrafficClass,
@@ -1109,7 +1141,7 @@ impl Writer {
     }
 
     let messages_to_send =
-      FragmentationIter::new_resume(self, cc, target_reader_opt, send_also_heartbeat, cursor);
+      FragmentationIter::new_resume(self, cc, target_reader_opt, heartbeat, cursor);
     let fragmentation_needed = messages_to_send.fragmentation_needed();
     let mut messages_to_send = messages_to_send.peekable();
     let mut burst_bytes = 0;
@@ -1615,7 +1647,7 @@ impl Writer {
         ts_active = false;
         // This emits the whole sample, including every fragment when it does
         // not fit one datagram. A later NACK_FRAG is what arms SendRepairFrags.
-        self.send_cache_change(&cc, false, Some(reader_proxy));
+        self.send_cache_change(&cc, Piggyback::None, Some(reader_proxy));
         round_bytes += payload_size + DATA_SUBMESSAGE_OVERHEAD;
       } else {
         let source_timestamp = cc.write_options.source_timestamp();
@@ -2476,12 +2508,27 @@ fn frags_per_datafrag(
   k.min(remaining_frags)
 }
 
+/// A reliable user writer asks for an ACKNACK on every this many pushed samples
+/// (see `Writer::push_heartbeat`).
+const ACK_REQUEST_EVERY_PUSHES: usize = 16;
+
+/// The HEARTBEAT sent after a sample's DATA (or last DATA_FRAG).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Piggyback {
+  /// None (best effort, or a repair).
+  None,
+  /// Final flag set: readers answer only if they miss something.
+  Final,
+  /// Final flag clear: every reader answers with an ACKNACK.
+  RequestAck,
+}
+
 struct FragmentationIter<'a> {
   writer: &'a Writer,
   cache_change: &'a CacheChange,
   target_reader_opt: Option<&'a RtpsReaderProxy>,
   reader_entity_id: EntityId,
-  send_heartbeat: bool,
+  heartbeat: Piggyback,
   finished: bool,
   state: FragmentationIterState,
 }
@@ -2496,7 +2543,7 @@ impl<'a> FragmentationIter<'a> {
     writer: &'a Writer,
     cache_change: &'a CacheChange,
     target_reader_opt: Option<&'a RtpsReaderProxy>,
-    send_heartbeat: bool,
+    heartbeat: Piggyback,
     cursor: SampleCursor,
   ) -> Self {
     // The EntityId of the destination
@@ -2532,7 +2579,7 @@ impl<'a> FragmentationIter<'a> {
       state,
       reader_entity_id,
       finished: false,
-      send_heartbeat,
+      heartbeat,
     }
   }
 
@@ -2573,7 +2620,7 @@ impl<'a> Iterator for FragmentationIter<'a> {
     let writer = self.writer;
     let target_reader_opt = self.target_reader_opt;
     let reader_entity_id = self.reader_entity_id;
-    let send_heartbeat = self.send_heartbeat;
+    let heartbeat = self.heartbeat;
 
     match &mut self.state {
       FragmentationIterState::Fragmented(state, data_size) => {
@@ -2679,8 +2726,8 @@ impl<'a> Iterator for FragmentationIter<'a> {
             self.finished = true;
 
             // Add HEARTBEAT message if needed
-            if send_heartbeat && !writer.like_stateless {
-              let final_flag = false; // false = request that readers acknowledge with ACKNACK.
+            if heartbeat != Piggyback::None && !writer.like_stateless {
+              let final_flag = heartbeat == Piggyback::Final;
               let liveliness_flag = false; // This is not a manual liveliness assertion (DDS API call), but side-effect of
                                            // writing new data.
               let hb_msg = MessageBuilder::new()
@@ -2738,8 +2785,8 @@ impl<'a> Iterator for FragmentationIter<'a> {
         );
 
         // Add HEARTBEAT if needed
-        if send_heartbeat && !writer.like_stateless {
-          let final_flag = false; // false = request that readers acknowledge with ACKNACK.
+        if heartbeat != Piggyback::None && !writer.like_stateless {
+          let final_flag = heartbeat == Piggyback::Final;
           let liveliness_flag = false; // This is not a manual liveliness assertion (DDS API call), but side-effect of
                                        // writing new data.
           message_builder = message_builder.heartbeat_msg(
@@ -2933,10 +2980,11 @@ mod tests {
       },
       discovery::discovery::Discovery,
       messages::submessages::{
-        elements::serialized_payload::SerializedPayload, submessages::AckNack,
+        elements::serialized_payload::SerializedPayload,
+        submessages::{AckNack, WriterSubmessage, HEARTBEAT_Flags},
       },
       polling::new_shared_timer,
-      rtps::writer_send_buffer::Admission,
+      rtps::{writer_send_buffer::Admission, SubmessageBody},
       structure::{guid::EntityKind, sequence_number::SequenceNumberSet},
       RepresentationIdentifier,
     };
@@ -3254,13 +3302,55 @@ mod tests {
         .unwrap();
       let (fragmented, progress) = f.writer.send_cache_change_from(
         &cc,
-        true,
+        Piggyback::RequestAck,
         None,
         SampleCursor::Fresh,
         TrafficClass::Control,
         false,
       );
       assert!(fragmented && matches!(progress, SendProgress::Complete));
+    }
+
+    // The final flags of the HEARTBEATs piggybacked on `samples` pushed samples,
+    // as the writer builds their messages.
+    fn piggybacked_final_flags(f: &mut Fixture, samples: usize) -> Vec<bool> {
+      let cc = f
+        .writer
+        .send_buffer
+        .get_by_sn(SequenceNumber::new(1))
+        .unwrap();
+      let mut finals = Vec::new();
+      for _ in 0..samples {
+        let heartbeat = f.writer.push_heartbeat(1);
+        let messages: Vec<_> =
+          FragmentationIter::new_resume(&f.writer, &cc, None, heartbeat, SampleCursor::Fresh)
+            .collect();
+        for (_, message) in messages {
+          for submessage in message.submessages {
+            if let SubmessageBody::Writer(WriterSubmessage::Heartbeat(_, flags)) = submessage.body {
+              finals.push(flags.contains(HEARTBEAT_Flags::Final));
+            }
+          }
+        }
+      }
+      finals
+    }
+
+    // A reliable user writer asks for an ACKNACK on every 16th pushed sample
+    // only; the HEARTBEATs piggybacked on the others carry the final flag. A
+    // built-in (discovery) writer asks every time.
+    #[test]
+    fn pushed_samples_request_an_acknack_once_per_sixteen() {
+      let mut user = Fixture::user(1, 8, None);
+      let finals = piggybacked_final_flags(&mut user, 40);
+      assert_eq!(finals.len(), 40, "one HEARTBEAT per pushed sample");
+      let asking: Vec<usize> = (0..40).filter(|&i| !finals[i]).collect();
+      assert_eq!(asking, vec![15, 31]);
+
+      let mut sedp = Fixture::sedp(1, 8);
+      assert!(piggybacked_final_flags(&mut sedp, 20)
+        .iter()
+        .all(|is_final| !is_final));
     }
 
     // A repeated ACKNACK count is a copy and changes nothing; a new count does.

@@ -211,6 +211,11 @@ where
   }
 
   /// Asynchronous response sending
+  ///
+  /// Unlike [`Server::send_response`], this does not wait for the client's
+  /// reply reader to be matched: the crate has no async timer to wait with
+  /// whatever runtime calls it. A caller that may answer a client's first
+  /// request should use `send_response`.
   pub async fn async_send_response(
     &self,
     rmw_req_id: RmwRequestId,

@@ -15,7 +15,9 @@ Runs, in one go on this machine:
     normal joint targets (sigma 0.35, clipped to the limits), POSITION_CONTROL with the
     URDF forces, 10 substeps at 240 Hz, reading joint states and the end-effector pose
     each step (no recording, so it is a lower bound on PyBullet's cost).
-Prints a table with steps/s and ratios (every run timed whole, start-up included), then the
+Prints a table with steps/s and ratios to the PyBullet loop (run first and last, as this VM's
+speed drifts; the reference is the mean of the two; every run timed whole, start-up
+included), then the
 DDS graphs again while stepping only (from the simulators' "starting" and "done" log lines:
 the PyBullet loop is timed without connecting and loading its URDF) with the steps requested
 but missing from the bag. Usage:
@@ -123,7 +125,7 @@ def main():
     parser.add_argument("--bin", default=str(REPO / "target" / "release" / "causal-arm"))
     args = parser.parse_args()
     rows = [
-        ("PyBullet exp1 loop (reference, no recording)", pybullet_exp1(args.steps)),
+        ("PyBullet exp1 loop (reference, no recording)", pybullet_exp1(args.steps)),  # run again at the end
         ("causal-arm generate exp1 (in-process, writes bag)", ours(args.bin, "exp1", args.steps)),
         ("causal-arm generate exp2 (in-process, writes bag)", ours(args.bin, "exp2", args.steps)),
         ("causal-arm generate exp1 --arm dynamic", ours(args.bin, "exp1", args.steps, arm="dynamic")),
@@ -138,6 +140,11 @@ def main():
     else:
         print("not inside tests/netns-run: skipping the DDS graph rows")
     rows += [(name, whole) for name, (whole, _, _) in graphs]
+    # This VM's speed drifts within minutes: the reference is the mean of a PyBullet run
+    # before everything else and one after.
+    first, last = rows[0][1], pybullet_exp1(args.steps)
+    print(f"PyBullet exp1 loop: {first:.0f} steps/s first, {last:.0f} last; the reference is their mean")
+    rows[0] = (rows[0][0], (first + last) / 2)
     ref = rows[0][1]
     print(f"\n{'run':<52} {'steps/s':>10} {'vs PyBullet':>12}")
     for name, rate in rows:

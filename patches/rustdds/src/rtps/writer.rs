@@ -3353,6 +3353,24 @@ mod tests {
         .all(|is_final| !is_final));
     }
 
+    // Under DDS Security every piggybacked HEARTBEAT asks for an ACKNACK: a
+    // reader skipped while its keys were in flight is repaired when it answers.
+    #[cfg(feature = "security")]
+    #[test]
+    fn secured_writers_request_an_acknack_on_every_sample() {
+      use crate::security::{
+        security_plugins::{SecurityPlugins, SecurityPluginsHandle},
+        AccessControlBuiltin, AuthenticationBuiltin, CryptographicBuiltin,
+      };
+      let mut user = Fixture::user(1, 8, None);
+      user.writer.security_plugins = Some(SecurityPluginsHandle::new(SecurityPlugins::new(
+        Box::new(AuthenticationBuiltin::new()),
+        Box::new(AccessControlBuiltin::new()),
+        Box::new(CryptographicBuiltin::new()),
+      )));
+      assert!((0..40).all(|_| user.writer.push_heartbeat(1) == Piggyback::RequestAck));
+    }
+
     // A repeated ACKNACK count is a copy and changes nothing; a new count does.
     #[test]
     fn duplicate_acknack_count_is_ignored() {

@@ -21,33 +21,26 @@ pub type Gid = [u8; 16];
 /// Which node owns each announced writer, from the `ros_discovery_info` samples seen.
 #[derive(Debug, Default, Clone)]
 pub struct WriterDirectory {
-    /// The writers each participant announced last (an announcement replaces the last).
-    by_participant: HashMap<Gid, Vec<Gid>>,
-    /// Fully qualified node name of each announced writer.
+    /// Fully qualified node name of each writer ever announced.
     node_of_writer: HashMap<Gid, String>,
 }
 
 impl WriterDirectory {
     /// Takes a participant's announcement: `nodes` as (fully qualified name, writer
-    /// GIDs). It replaces whatever the participant announced before.
+    /// GIDs). A writer it names is now that node's. A writer it no longer names (its node
+    /// or the writer is gone) keeps its owner: the samples it wrote before it left may
+    /// still be waiting to be read (a babbler's last action, read after the babbler
+    /// exited), and a GID is never reused, so no one else can claim it.
     pub fn update(
         &mut self,
-        participant: Gid,
+        _participant: Gid,
         nodes: impl IntoIterator<Item = (String, Vec<Gid>)>,
     ) {
-        if let Some(old) = self.by_participant.remove(&participant) {
-            for writer in old {
-                self.node_of_writer.remove(&writer);
-            }
-        }
-        let mut writers = Vec::new();
         for (node, gids) in nodes {
             for gid in gids {
                 self.node_of_writer.insert(gid, node.clone());
-                writers.push(gid);
             }
         }
-        self.by_participant.insert(participant, writers);
     }
 
     /// The node that announced `writer`, if any has.
@@ -265,10 +258,27 @@ mod tests {
         d.update([13; 16], [("/stray".to_owned(), vec![STRAY])]);
         assert!(q.release(&trusted, &d).is_empty());
         assert_eq!((q.held(), q.counts().foreign), (0, 2));
-        // A participant's new announcement replaces its old one.
+        // A participant's new announcement moves the writers it names.
         d.update([12; 16], [("/elsewhere".to_owned(), vec![late])]);
         assert_eq!(d.node_of(&SIM), Some("/causal_arm_sim"));
         assert_eq!(d.node_of(&late), Some("/elsewhere"));
+    }
+
+    #[test]
+    fn a_departed_nodes_writer_keeps_its_owner_so_its_last_samples_pass() {
+        // The babbler answers the last state and exits; its participant then announces no
+        // nodes. The recorder reads the last action after that announcement.
+        const BABBLER: Gid = [5; 16];
+        let trusted = Trusted::parse("", "/", &["causal_arm_babbler"]);
+        let mut d = WriterDirectory::default();
+        d.update(
+            [14; 16],
+            [("/causal_arm_babbler".to_owned(), vec![BABBLER])],
+        );
+        d.update([14; 16], Vec::<(String, Vec<Gid>)>::new());
+        let mut q = Quarantine::default();
+        assert_eq!(q.admit(&trusted, &d, BABBLER, 7), vec![7]);
+        assert_eq!(q.held(), 0);
     }
 
     #[test]

@@ -180,6 +180,53 @@ def test_a_reply_waits_for_the_clients_reply_reader(trainer_node):
     pytest.fail("no reply: it was sent before the server matched the client's reply reader")
 
 
+def test_a_client_without_a_reply_reader_does_not_hold_up_other_clients(trainer_node, run_cli):
+    """A reply waits for its client's reply reader (above), but never at the expense of
+    other clients: the trainer answers every client from one loop, so a reply that waited
+    in place would stall the loop for the whole wait. Here a stray program floods the
+    trainer with requests and never makes a reply reader. Waiting in place, each of its
+    requests would hold the loop for 1 s while its 10-deep request queue keeps filling, and
+    another client's call would never be answered; held aside, the call is answered as
+    usual."""
+    import threading
+
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.topic import Topic
+
+    participant = DomainParticipant(41)
+    qos = idl.ros_default_qos(depth=100)
+    writer = DataWriter(participant, Topic(participant, "rq/trainer/model_infoRequest", idl.GetModelInfoRequest), qos=qos)
+    deadline = time.monotonic() + 20
+    while not writer.get_matched_subscriptions():
+        assert time.monotonic() < deadline, "the trainer's request reader never matched"
+        time.sleep(0.05)
+    guid = int.from_bytes(writer.guid.bytes[:8], "little")
+    flooding = threading.Event()
+    flooding.set()
+
+    def flood():
+        sequence = 0
+        while flooding.is_set():
+            sequence += 1
+            writer.write(idl.GetModelInfoRequest(client_guid=guid, sequence_number=sequence, model="fm"))
+            time.sleep(0.01)
+
+    flooder = threading.Thread(target=flood, daemon=True)
+    flooder.start()
+    try:
+        time.sleep(0.5)
+        env = {"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp", "ROS_DOMAIN_ID": "41"}
+        r = run_cli("service", "call", "/trainer/model_info", "--type", "causal_arm_msgs/srv/GetModelInfo",
+                    "--json", '{"model": "fm"}', "--timeout", "8", env=env)
+    finally:
+        flooding.clear()
+        flooder.join()
+    assert r.returncode == 0, f"the call was not answered while a readerless client flooded the trainer: {r.stderr}"
+    reply = json.loads(r.stdout)
+    assert reply["success"] and reply["models"] == ["fm", "im-mono"], reply
+
+
 def test_node_refuses_missing_and_corrupt_model_dirs(causal_arm_bin, model_dir, tmp_path, private_netns):
     binary = causal_arm_bin.parent / "causal_arm_trainer"
     r = subprocess.run([str(binary)], capture_output=True, text=True, timeout=30)

@@ -19,33 +19,117 @@ use std::collections::{HashMap, VecDeque};
 pub type Gid = [u8; 16];
 
 /// Which node owns each announced writer, from the `ros_discovery_info` samples seen.
+///
+/// Bounded, since any participant may announce anything: a writer its participant stops
+/// naming is kept for the last [`WriterDirectory::DEPARTED_KEPT`] such departures, and at
+/// most [`WriterDirectory::WRITERS_KEPT`] writers are known at once; a writer announced
+/// beyond that is refused (counted), so a flood of fresh GIDs cannot push out the graph's
+/// own writers, which were announced first.
 #[derive(Debug, Default, Clone)]
 pub struct WriterDirectory {
-    /// Fully qualified node name of each writer ever announced.
+    /// Fully qualified node name of each writer announced now or departed recently.
     node_of_writer: HashMap<Gid, String>,
+    /// The writers each participant's last announcement named.
+    writers_of_participant: HashMap<Gid, Vec<Gid>>,
+    /// The participant whose last announcement names each writer.
+    announcer: HashMap<Gid, Gid>,
+    /// Writers no longer named by their participant, oldest first.
+    departed: VecDeque<Gid>,
+    /// Writers refused because the directory was full.
+    refused: u64,
 }
 
 impl WriterDirectory {
+    /// Departed writers remembered: a node's samples written before it left are read
+    /// within moments, so the last few thousand departures are plenty.
+    pub const DEPARTED_KEPT: usize = 4096;
+    /// Writers known at once (announced now or departed recently).
+    pub const WRITERS_KEPT: usize = 16384;
+
     /// Takes a participant's announcement: `nodes` as (fully qualified name, writer
     /// GIDs). A writer it names is now that node's. A writer it no longer names (its node
-    /// or the writer is gone) keeps its owner: the samples it wrote before it left may
-    /// still be waiting to be read (a babbler's last action, read after the babbler
-    /// exited), and a GID is never reused, so no one else can claim it.
+    /// or the writer is gone) keeps its owner for a while: the samples it wrote before it
+    /// left may still be waiting to be read (a babbler's last action, read after the
+    /// babbler exited), and a GID is never reused, so no one else can claim it.
     pub fn update(
         &mut self,
-        _participant: Gid,
+        participant: Gid,
         nodes: impl IntoIterator<Item = (String, Vec<Gid>)>,
     ) {
-        for (node, gids) in nodes {
-            for gid in gids {
-                self.node_of_writer.insert(gid, node.clone());
+        let named: HashMap<Gid, String> = nodes
+            .into_iter()
+            .flat_map(|(node, gids)| gids.into_iter().map(move |gid| (gid, node.clone())))
+            .collect();
+        for gone in self
+            .writers_of_participant
+            .remove(&participant)
+            .unwrap_or_default()
+        {
+            if !named.contains_key(&gone) && self.announcer.get(&gone) == Some(&participant) {
+                self.announcer.remove(&gone);
+                self.departed.push_back(gone);
             }
+        }
+        while self.departed.len() > Self::DEPARTED_KEPT {
+            self.forget_oldest_departed();
+        }
+        let mut kept = Vec::with_capacity(named.len());
+        for (writer, node) in named {
+            if !self.make_room_for(&writer) {
+                self.refused += 1;
+                continue;
+            }
+            self.node_of_writer.insert(writer, node);
+            self.announcer.insert(writer, participant);
+            kept.push(writer);
+        }
+        if !kept.is_empty() {
+            self.writers_of_participant.insert(participant, kept);
+        }
+    }
+
+    /// Whether `writer` has a place: it is known already, there is room, or a departed
+    /// writer could be forgotten to make room.
+    fn make_room_for(&mut self, writer: &Gid) -> bool {
+        while !self.node_of_writer.contains_key(writer)
+            && self.node_of_writer.len() >= Self::WRITERS_KEPT
+        {
+            if self.departed.is_empty() {
+                return false;
+            }
+            self.forget_oldest_departed();
+        }
+        true
+    }
+
+    /// Forgets the oldest departed writer, unless a participant has named it again since.
+    fn forget_oldest_departed(&mut self) {
+        if let Some(writer) = self.departed.pop_front()
+            && !self.announcer.contains_key(&writer)
+            && !self.departed.contains(&writer)
+        {
+            self.node_of_writer.remove(&writer);
         }
     }
 
     /// The node that announced `writer`, if any has.
     pub fn node_of(&self, writer: &Gid) -> Option<&str> {
         self.node_of_writer.get(writer).map(String::as_str)
+    }
+
+    /// Writers known now (announced or departed recently).
+    pub fn len(&self) -> usize {
+        self.node_of_writer.len()
+    }
+
+    /// Whether no writer is known.
+    pub fn is_empty(&self) -> bool {
+        self.node_of_writer.is_empty()
+    }
+
+    /// Writers refused because the directory was full.
+    pub fn refused(&self) -> u64 {
+        self.refused
     }
 }
 
@@ -279,6 +363,63 @@ mod tests {
         let mut q = Quarantine::default();
         assert_eq!(q.admit(&trusted, &d, BABBLER, 7), vec![7]);
         assert_eq!(q.held(), 0);
+    }
+
+    fn gid(n: usize) -> Gid {
+        let mut g = [0xee; 16];
+        g[..8].copy_from_slice(&(n as u64).to_le_bytes());
+        g
+    }
+
+    #[test]
+    fn a_flood_of_fresh_writers_is_bounded_and_keeps_the_graphs_own() {
+        let mut d = directory();
+        // A hostile participant announces fresh writers without end, each announcement
+        // replacing its last.
+        let hostile: Gid = [20; 16];
+        for round in 0..40 {
+            let gids = (0..1000).map(|i| gid(round * 1000 + i)).collect();
+            d.update(hostile, [("/flood".to_owned(), gids)]);
+            assert!(d.len() <= WriterDirectory::WRITERS_KEPT, "{}", d.len());
+        }
+        assert_eq!(d.node_of(&SIM), Some("/causal_arm_sim"));
+        assert_eq!(d.node_of(&IMPOSTOR), Some("/talker"));
+        // The latest announcement stands; the oldest departures are forgotten.
+        assert_eq!(d.node_of(&gid(39_999)), Some("/flood"));
+        assert_eq!(d.node_of(&gid(0)), None);
+        assert_eq!(d.refused(), 0);
+        // Many participants each holding writers at once fill the directory: the
+        // writers beyond it are refused, never the ones known already.
+        for p in 0..40u8 {
+            let gids = (0..1000)
+                .map(|i| gid(100_000 + p as usize * 1000 + i))
+                .collect();
+            d.update([30 + p; 16], [("/crowd".to_owned(), gids)]);
+        }
+        assert_eq!(d.len(), WriterDirectory::WRITERS_KEPT);
+        assert!(d.refused() > 0);
+        assert_eq!(d.node_of(&SIM), Some("/causal_arm_sim"));
+    }
+
+    #[test]
+    fn a_writer_named_again_is_not_forgotten_with_its_old_departure() {
+        let mut d = WriterDirectory::default();
+        let node = |gids: Vec<Gid>| [("/n".to_owned(), gids)];
+        d.update([1; 16], node(vec![gid(1)]));
+        d.update([1; 16], node(vec![]));
+        d.update([1; 16], node(vec![gid(1)]));
+        for i in 0..WriterDirectory::DEPARTED_KEPT + 1 {
+            d.update([2; 16], node(vec![gid(10 + i)]));
+        }
+        assert_eq!(d.node_of(&gid(1)), Some("/n"));
+        // Another participant taking a writer over: its first announcer leaving does
+        // not make it depart.
+        d.update([3; 16], node(vec![gid(1)]));
+        d.update([1; 16], node(vec![]));
+        for i in 0..WriterDirectory::DEPARTED_KEPT + 1 {
+            d.update([2; 16], node(vec![gid(20_000 + i)]));
+        }
+        assert_eq!(d.node_of(&gid(1)), Some("/n"));
     }
 
     #[test]

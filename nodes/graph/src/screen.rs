@@ -55,7 +55,16 @@ impl Screen {
                         let name = format!("{base}/{}", n.node_name);
                         (name, n.writer_gid_seq.into_iter().map(|g| g.data).collect())
                     });
-                    self.directory.borrow_mut().update(info.gid.data, nodes);
+                    let mut directory = self.directory.borrow_mut();
+                    let refused_before = directory.refused();
+                    directory.update(info.gid.data, nodes);
+                    if directory.refused() > refused_before && refused_before < LOGGED {
+                        tracing::warn!(
+                            "the writer directory is full ({} writers): refused {} announced writers so far; their samples are held as unknown",
+                            directory.len(),
+                            directory.refused()
+                        );
+                    }
                 }
                 Ok(None) => return,
                 Err(e) => {

@@ -12,6 +12,7 @@ pub mod logging;
 pub mod node;
 pub mod params;
 pub mod qos;
+pub mod replies;
 pub mod run;
 pub mod runtime;
 

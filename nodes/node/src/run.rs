@@ -25,23 +25,14 @@ pub enum Served {
     ReplyNotSent,
     /// A request arrived that could not be read (rustdds dropped it).
     Unreadable,
-}
-
-impl Served {
-    /// The outcome of `server.async_receive_request()` then `send_response(...)`: pass the
-    /// receive result and, for a received request, whether the reply was sent.
-    pub fn from_turn<E>(turn: Result<bool, E>) -> Self {
-        match turn {
-            Ok(true) => Self::Replied,
-            Ok(false) => Self::ReplyNotSent,
-            Err(_) => Self::Unreadable,
-        }
-    }
+    /// A reply waits for its client's reply reader (see [`crate::replies::Replies`]).
+    Held,
 }
 
 /// A service node's main loop: `next()` waits for one request on any of the node's
-/// servers and answers it; the loop wakes at least every 200 ms to notice `stop`, logs
-/// replies that could not be sent and requests that could not be read, and keeps serving.
+/// servers and answers it, or for held replies to fall due ([`crate::replies::Replies`]);
+/// the loop wakes at least every 200 ms to notice `stop`, logs replies that could not be
+/// sent and requests that could not be read, and keeps serving.
 pub fn serve_until_stopped<F, Fut>(stop: &std::sync::atomic::AtomicBool, mut next: F)
 where
     F: FnMut() -> Fut,
@@ -50,7 +41,7 @@ where
     while !stop.load(std::sync::atomic::Ordering::SeqCst) {
         let turn = crate::runtime::block_on_timeout(next(), std::time::Duration::from_millis(200));
         match turn {
-            None | Some(Served::Replied) => {}
+            None | Some(Served::Replied | Served::Held) => {}
             Some(Served::ReplyNotSent) => tracing::warn!("could not send a reply"),
             Some(Served::Unreadable) => tracing::warn!("could not read a request"),
         }

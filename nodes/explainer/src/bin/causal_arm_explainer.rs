@@ -19,9 +19,11 @@ use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_msgs::msg::Relevance as RelevanceMsg;
 use causal_arm_msgs::srv::Explain;
 use causal_arm_msgs::std_msgs::msg::Header;
-use causal_arm_node::run::{Served, node_main, serve_until_stopped, stop_flag};
+use causal_arm_node::replies::Replies;
+use causal_arm_node::run::{node_main, serve_until_stopped, stop_flag};
 use causal_arm_node::{Params, RosArgs, RosNode, qos, server_param_specs};
 use causal_arm_trainer::load_model;
+use futures::FutureExt;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 
@@ -137,14 +139,14 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let service = ExplainService::new(explainer, pool, deep, kernel);
     let server = node.server::<Explain>(EXPLAIN)?;
     tracing::info!("serving {EXPLAIN}; relevance report latched on {RELEVANCE}");
+    let replies = Replies::default();
     serve_until_stopped(&stop, || async {
-        Served::from_turn(
-            server
-                .async_receive_request()
-                .await
-                .map(|(id, req)| server.send_response(id, service.explain(&req)).is_ok()),
-        )
+        futures::select! {
+            r = server.async_receive_request().fuse() => replies.reply(&server, r, |req| service.explain(req)),
+            served = replies.resend_due().fuse() => served,
+        }
     });
+    replies.flush();
     tracing::info!("stopping");
     Ok(())
 }

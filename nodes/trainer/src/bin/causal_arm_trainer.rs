@@ -13,7 +13,8 @@ use std::time::Duration;
 use anyhow::{anyhow, bail};
 use causal_arm_dataset::{ActionSource, Cache, load_bags};
 use causal_arm_msgs::srv::{GetModelInfo, PredictAction, PredictNextState, Rollout};
-use causal_arm_node::run::{Served, node_main, serve_until_stopped, stop_flag};
+use causal_arm_node::replies::Replies;
+use causal_arm_node::run::{node_main, serve_until_stopped, stop_flag};
 use causal_arm_node::{RosArgs, RosNode, server_param_specs};
 use causal_arm_trainer::fit::ProgressLog;
 use causal_arm_trainer::job::train_and_save;
@@ -77,14 +78,17 @@ fn serve(
         models.experiment(),
         models.model_info(&Default::default()).models.join(", ")
     );
+    let replies = Replies::default();
     serve_until_stopped(stop, || async {
         futures::select! {
-            r = next_state.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| next_state.send_response(id, models.predict_next_state(&req)).is_ok())),
-            r = action.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| action.send_response(id, models.predict_action(&req)).is_ok())),
-            r = rollout.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| rollout.send_response(id, models.rollout(&req)).is_ok())),
-            r = info.async_receive_request().fuse() => Served::from_turn(r.map(|(id, req)| info.send_response(id, models.model_info(&req)).is_ok())),
+            r = next_state.async_receive_request().fuse() => replies.reply(&next_state, r, |req| models.predict_next_state(req)),
+            r = action.async_receive_request().fuse() => replies.reply(&action, r, |req| models.predict_action(req)),
+            r = rollout.async_receive_request().fuse() => replies.reply(&rollout, r, |req| models.rollout(req)),
+            r = info.async_receive_request().fuse() => replies.reply(&info, r, |req| models.model_info(req)),
+            served = replies.resend_due().fuse() => served,
         }
     });
+    replies.flush();
     tracing::info!("stopping");
     Ok(())
 }

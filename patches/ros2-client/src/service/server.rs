@@ -112,7 +112,12 @@ where
 
   /// Whether the reply writer has matched a reader of the client that sent
   /// `rmw_req_id`; `None` when matches are not tracked (no Spinner).
-  fn client_reader_matched(&self, rmw_req_id: &RmwRequestId) -> Option<bool> {
+  ///
+  /// A server that answers many clients from one thread can hold a reply
+  /// until this says `true` (or its own deadline passes) and then send it with
+  /// [`Server::send_response_now`], instead of blocking in
+  /// [`Server::send_response`] while other clients wait.
+  pub fn reply_reader_matched(&self, rmw_req_id: &RmwRequestId) -> Option<bool> {
     let matched = self.matched_readers.as_ref()?.lock().unwrap();
     let client = GUID::from(rmw_req_id.writer_gid);
     let readers = matched.get(&self.response_sender.guid());
@@ -126,7 +131,7 @@ where
   fn wait_for_client_reader(&self, rmw_req_id: &RmwRequestId) -> bool {
     let deadline = Instant::now() + REPLY_READER_WAIT;
     loop {
-      match self.client_reader_matched(rmw_req_id) {
+      match self.reply_reader_matched(rmw_req_id) {
         None | Some(true) => return true,
         Some(false) if Instant::now() >= deadline => return false,
         Some(false) => std::thread::sleep(Duration::from_millis(2)),
@@ -147,6 +152,13 @@ where
         rmw_req_id.writer_gid
       );
     }
+    self.send_response_now(rmw_req_id, response)
+  }
+
+  /// Sends the response to the request `rmw_req_id` identifies at once, whether
+  /// or not the client's reply reader is matched yet (see
+  /// [`Server::reply_reader_matched`]).
+  pub fn send_response_now(&self, rmw_req_id: RmwRequestId, response: Resp) -> WriteResult<(), ()> {
     let resp_wrapper = ResponseWrapper::<Resp>::new(
       self.service_mapping,
       rmw_req_id,

@@ -4,7 +4,8 @@ to 40 % within an hour (runs of one build an hour apart compare the VM, not the 
 
 Each round runs `launch exp1` once per build and shard count, alternating builds, and
 prints each run's steps/s over the whole launch, steps/s while stepping (see
-datagen_bench.py) and steps lost; then the means. A build is a directory holding
+datagen_bench.py), the seconds spent besides stepping (start-up, discovery, the end) and
+steps lost; then the means. A build is a directory holding
 `causal-arm` and the node binaries (copy them out of target/release before rebuilding).
 Usage (starts DDS participants: inside tests/netns-run, on a quiet machine):
   tests/netns-run target/pyvenv/bin/python tests/bench/dds_ab.py A_DIR B_DIR [--steps N] [--rounds R] [--shards 1,2]
@@ -30,14 +31,17 @@ def main():
                 run = ours_dds(str(pathlib.Path(build) / "causal-arm"), args.steps, shards)
                 results.setdefault((build, shards), []).append(run)
                 whole, stepping, lost = run
-                print(f"{build:<24} shards={shards}: whole {whole:6.0f}  stepping {stepping:6.0f}  lost {lost}",
-                      flush=True)
+                besides = args.steps / whole - args.steps / stepping
+                print(f"{build:<24} shards={shards}: whole {whole:6.0f}  stepping {stepping:6.0f}  "
+                      f"besides stepping {besides:5.2f} s  lost {lost}", flush=True)
     print()
     for (build, shards), runs in results.items():
         whole = sum(r[0] for r in runs) / len(runs)
         stepping = sum(r[1] for r in runs) / len(runs)
         lost = sum(r[2] for r in runs)
-        print(f"{build:<24} shards={shards}: mean whole {whole:6.0f}  mean stepping {stepping:6.0f}  lost {lost}")
+        besides = sum(args.steps / r[0] - args.steps / r[1] for r in runs) / len(runs)
+        print(f"{build:<24} shards={shards}: mean whole {whole:6.0f}  mean stepping {stepping:6.0f}  "
+              f"mean besides stepping {besides:5.2f} s  lost {lost}")
 
 
 if __name__ == "__main__":

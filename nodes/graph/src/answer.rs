@@ -104,7 +104,15 @@ pub fn answer_states(
     }
 
     // Let reliable delivery of the last action complete.
-    std::thread::sleep(Duration::from_millis(200));
+    if !actions
+        .wait_for_all_acked(crate::FINAL_DELIVERY)
+        .unwrap_or(false)
+    {
+        tracing::debug!(
+            "the last action was not confirmed within {:?}",
+            crate::FINAL_DELIVERY
+        );
+    }
     tracing::info!(
         "{who} answered {answered} of {total} steps; {}",
         refusal_summary(&feeds, &joiner)

@@ -30,4 +30,9 @@ pub use plan::{RunParams, expected_readers, node_param_specs};
 /// last step it has written completely).
 pub const ACK_TOPIC: &str = causal_arm_protocol::topics::RECORDER_ACK;
 
+/// How long a node waits, before it exits, for its last samples to be acknowledged by
+/// every reader: a round trip on one machine, so the bound is reached only when a reader
+/// has left.
+pub const FINAL_DELIVERY: std::time::Duration = std::time::Duration::from_millis(300);
+
 pub use causal_arm_node::run::{node_main, stop_flag, take_next};

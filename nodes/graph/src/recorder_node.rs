@@ -164,10 +164,18 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     }
     let last_written = sink.last_step_stamp();
     let summary = sink.finish()?;
-    // Every step has landed now: acknowledge the last one, and give reliable delivery time
-    // to reach the simulator.
+    // Every step has landed now: acknowledge the last one, and let reliable delivery reach
+    // the simulator (it waits for this very acknowledgement before it exits).
     acknowledge(&ack, &mut acked, last_written);
-    std::thread::sleep(Duration::from_millis(300));
+    if !ack
+        .wait_for_all_acked(crate::FINAL_DELIVERY)
+        .unwrap_or(false)
+    {
+        tracing::debug!(
+            "the last acknowledgement was not confirmed within {:?}",
+            crate::FINAL_DELIVERY
+        );
+    }
     tracing::info!(
         "wrote {} ({written} steps of {total})",
         summary.dir.display()

@@ -41,6 +41,18 @@ impl<M: Serialize> Publisher<M> {
     self.datawriter.assert_liveliness().map_err(Into::into)
   }
 
+  /// Waits until every matched reliable subscription has acknowledged every
+  /// message published so far, or `max_wait` passes; returns whether they
+  /// have (`true` at once for a best-effort publisher). As rclcpp's
+  /// `Publisher::wait_for_all_acked`: a node about to exit calls it so its
+  /// last messages are not lost with its process.
+  pub fn wait_for_all_acked(&self, max_wait: std::time::Duration) -> WriteResult<bool, ()> {
+    self
+      .datawriter
+      .wait_for_acknowledgments(max_wait)
+      .map_err(Into::into)
+  }
+
   pub fn guid(&self) -> rustdds::GUID {
     self.datawriter.guid()
   }

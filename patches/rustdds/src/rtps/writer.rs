@@ -870,6 +870,20 @@ impl Writer {
   }
 
   pub fn process_pending(&mut self) {
+    self.push_unsent();
+    // An application waits for acknowledgements: once everything is on the
+    // wire, ask for them now (a blocked or paced send keeps the request for the
+    // next wake-up; the periodic HEARTBEAT asks in any case).
+    if !self.paced
+      && self.last_sent >= self.send_buffer.last_change_sequence_number()
+      && self.send_buffer.take_ack_request()
+    {
+      self.pushes_since_ack_request = 0;
+      self.handle_heartbeat_tick(false);
+    }
+  }
+
+  fn push_unsent(&mut self) {
     // The doorbell enqueues this writer's id and then wakes. A sample admitted
     // while we are here pushes another id, so the next wake runs us again. The
     // shared buffer's `last_seq` is the source of truth.
@@ -3351,6 +3365,41 @@ mod tests {
       assert!(piggybacked_final_flags(&mut sedp, 20)
         .iter()
         .all(|is_final| !is_final));
+    }
+
+    // An application waiting for acknowledgements gets an asking HEARTBEAT at
+    // the Writer's next wake-up, once what it wrote is on the wire, instead of
+    // at the next periodic HEARTBEAT; one per request.
+    #[test]
+    fn a_wait_for_acknowledgments_asks_at_once() {
+      let mut f = Fixture::user(1, 8, None);
+      let heartbeats = |f: &Fixture| f.writer.heartbeat_message_counter.load(atomic::Ordering::SeqCst);
+      f.writer.process_pending();
+      let pushed = heartbeats(&f);
+      f.writer.process_pending();
+      assert_eq!(heartbeats(&f), pushed, "a HEARTBEAT nobody asked for");
+
+      f.writer.send_buffer.request_acknowledgment();
+      f.writer.process_pending();
+      assert_eq!(heartbeats(&f), pushed + 1, "no HEARTBEAT on request");
+      f.writer.process_pending();
+      assert_eq!(heartbeats(&f), pushed + 1, "the request was not cleared");
+
+      // Requested with a sample still unsent: the sample, then the asking HEARTBEAT.
+      let data = DDSData::new(SerializedPayload::new(
+        RepresentationIdentifier::CDR_LE,
+        vec![0; 8],
+      ));
+      assert!(matches!(
+        f.writer
+          .send_buffer
+          .admit_blocking(WriteOptions::default(), data, Some(StdDuration::ZERO)),
+        Admission::Admitted(_)
+      ));
+      f.writer.send_buffer.request_acknowledgment();
+      f.writer.process_pending();
+      assert_eq!(f.writer.last_sent, SequenceNumber::new(2));
+      assert_eq!(heartbeats(&f), pushed + 3);
     }
 
     // Under DDS Security every piggybacked HEARTBEAT asks for an ACKNACK: a

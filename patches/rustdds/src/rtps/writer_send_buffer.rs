@@ -73,6 +73,11 @@ struct Inner {
   // Wakers of async producers / ack-waiters parked because the window was full
   // or acknowledgements were still pending. Drained (woken) on any advance.
   wakers: Vec<Waker>,
+
+  // An application is waiting for acknowledgements: the Writer should ask its
+  // readers for an ACKNACK now rather than at its next periodic HEARTBEAT
+  // (most pushed samples carry a final HEARTBEAT, which asks for none).
+  ack_requested: bool,
 }
 
 struct Shared {
@@ -131,6 +136,7 @@ impl WriterSendBuffer {
           sent_frontier: SequenceNumber::new(0),
           max_retain: max_retain.max(1),
           wakers: Vec::new(),
+          ack_requested: false,
         }),
         progress: Condvar::new(),
         writer_guid,
@@ -421,6 +427,18 @@ impl WriterSendBuffer {
       let (guard, _to) = shared.progress.wait_timeout(inner, deadline - now).unwrap();
       inner = guard;
     }
+  }
+
+  /// Asks the Writer to request acknowledgements at its next wake-up (the
+  /// caller rings its doorbell): a waiter then hears back within a round trip.
+  pub fn request_acknowledgment(&self) {
+    self.shared.inner.lock().unwrap().ack_requested = true;
+  }
+
+  /// Whether acknowledgements were requested since the last call (and clears
+  /// the request).
+  pub fn take_ack_request(&self) -> bool {
+    std::mem::take(&mut self.shared.inner.lock().unwrap().ack_requested)
   }
 
   /// Register `waker` to be notified when the acknowledgement frontier advances

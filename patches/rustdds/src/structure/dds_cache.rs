@@ -1,6 +1,6 @@
 use std::{
   cmp::max,
-  collections::{btree_map, BTreeMap, HashMap},
+  collections::{btree_map, BTreeMap, BTreeSet, HashMap},
   iter,
   ops::Bound::{Excluded, Included},
   sync::{Arc, Mutex},
@@ -154,6 +154,10 @@ pub(crate) struct TopicCache {
   // Therefore, data before the marker SN can be handed off to a Reliable DataReader.
   // Initially, we consider the marker for each Writer (GUID) to be SequenceNumber::new(1)
   received_reliably_before: BTreeMap<GUID, SequenceNumber>,
+
+  // Writers that are gone but still have samples here: their markers are
+  // dropped with their last sample.
+  departed_writers: BTreeSet<GUID>,
 }
 
 impl TopicCache {
@@ -170,6 +174,7 @@ impl TopicCache {
       last_added_instant: Timestamp::ZERO,
       sequence_numbers: BTreeMap::new(),
       received_reliably_before: BTreeMap::new(),
+      departed_writers: BTreeSet::new(),
     };
 
     new_self.update_keep_limits(topic_qos);
@@ -227,6 +232,8 @@ impl TopicCache {
   // have given up on a missing sample that the Reader is still waiting for.
   pub fn mark_reliably_received_before(&mut self, writer: GUID, sn: SequenceNumber) -> bool {
     let prev_sn = self.reliable_before(writer);
+    // A Writer heard from again is not gone after all.
+    self.departed_writers.remove(&writer);
     // The entry must exist even at the initial value: withheld samples are
     // protected only for Writers that have one.
     let marker = self.received_reliably_before.entry(writer).or_default();
@@ -253,8 +260,26 @@ impl TopicCache {
   }
 
   // The Writer is gone, so samples it never completed are no longer awaited.
+  // The samples it did deliver stay takeable: the marker moves past the last
+  // one present (removing it would hide them all, since a Writer without a
+  // marker counts as having delivered nothing, and a Reader that had not yet
+  // taken a departed Writer's last samples never got them). The marker goes
+  // once those samples have left the cache.
   pub fn forget_reliable_writer(&mut self, writer: GUID) {
-    self.received_reliably_before.remove(&writer);
+    match self
+      .sequence_numbers
+      .get(&writer)
+      .and_then(|sn_map| sn_map.keys().next_back())
+    {
+      Some(last_present) => {
+        let marker = self.received_reliably_before.entry(writer).or_default();
+        *marker = max(*marker, last_present.plus_1());
+        self.departed_writers.insert(writer);
+      }
+      None => {
+        self.received_reliably_before.remove(&writer);
+      }
+    }
   }
 
   // The oldest change that a Reliable DataReader cannot yet take, because an
@@ -487,6 +512,9 @@ impl TopicCache {
     });
     if emptied {
       self.sequence_numbers.remove(&cc.writer_guid);
+      if self.departed_writers.remove(&cc.writer_guid) {
+        self.received_reliably_before.remove(&cc.writer_guid);
+      }
     }
   }
 
@@ -770,6 +798,42 @@ mod tests {
       topic_cache.remove_changes_before(Timestamp::ZERO);
     }
     assert_eq!(topic_cache.changes.len(), backlog as usize);
+  }
+
+  // A Writer that leaves before the DataReader took its last samples (a node
+  // that exits right after its last message is acknowledged): those samples
+  // stay takeable, and the Writer's marker goes with its last sample.
+  #[test]
+  fn a_departed_writers_untaken_samples_stay_takeable() {
+    let mut topic_cache = keep_all_topic_cache();
+    let writer = user_writer();
+    for sn in 1..=3 {
+      add_sample(&mut topic_cache, writer, sn, 10);
+    }
+    topic_cache.mark_reliably_received_before(writer, SequenceNumber::new(4));
+    let taken_through_1 = BTreeMap::from([(writer, SequenceNumber::new(1))]);
+    let takeable = |cache: &TopicCache| -> Vec<SequenceNumber> {
+      cache
+        .get_changes_in_range_reliable(&taken_through_1)
+        .map(|(_, cc)| cc.sequence_number)
+        .collect()
+    };
+    assert_eq!(takeable(&topic_cache), [SequenceNumber::new(2), SequenceNumber::new(3)]);
+
+    topic_cache.forget_reliable_writer(writer);
+    assert_eq!(
+      takeable(&topic_cache),
+      [SequenceNumber::new(2), SequenceNumber::new(3)],
+      "a departed writer's samples were hidden"
+    );
+
+    // Once its samples are gone, so is its marker.
+    topic_cache.max_keep_samples = 0;
+    topic_cache.min_keep_samples = History::KeepLast { depth: 0 };
+    topic_cache.remove_changes_before(Timestamp::now());
+    assert!(topic_cache.changes.is_empty());
+    assert!(!topic_cache.received_reliably_before.contains_key(&writer));
+    assert!(topic_cache.departed_writers.is_empty());
   }
 
   #[test]

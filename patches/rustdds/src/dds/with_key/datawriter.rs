@@ -273,6 +273,14 @@ where
     self.doorbell.ring();
   }
 
+  // Have the Writer ask its readers for an ACKNACK at once: a reliable writer
+  // asks with only some of its pushed samples, so a waiter would otherwise hear
+  // back only after the next periodic HEARTBEAT (100 ms by default).
+  fn request_acknowledgments(&self) {
+    self.send_buffer.request_acknowledgment();
+    self.ring_doorbell();
+  }
+
   /// Manually refreshes liveliness
   ///
   /// Corresponds to DDS Spec 1.4 Section 2.2.2.4.2.22 assert_liveliness.
@@ -454,6 +462,9 @@ where
         // Wait until every matched reliable reader has acknowledged everything we
         // have written so far (the current last sequence number), or we time out.
         let target = self.send_buffer.last_change_sequence_number();
+        if !self.send_buffer.is_acked_through(target) {
+          self.request_acknowledgments();
+        }
         Ok(self.send_buffer.wait_for_acked_through(target, max_wait))
       }
     } // match
@@ -1063,6 +1074,9 @@ where
       None | Some(Reliability::BestEffort) => Ok(true),
       Some(Reliability::Reliable { .. }) => {
         let target = self.send_buffer.last_change_sequence_number();
+        if !self.send_buffer.is_acked_through(target) {
+          self.request_acknowledgments();
+        }
         AsyncWaitForAcknowledgments {
           writer: self,
           target,

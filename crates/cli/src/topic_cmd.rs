@@ -52,8 +52,9 @@ struct PubArgs {
     /// QoS profile: recorded, clock, latched, default, services, best_effort.
     #[arg(long, default_value = "default", value_parser = clap::builder::PossibleValuesParser::new(qos::PROFILE_NAMES))]
     qos: String,
-    /// After subscribers matched, wait this long so their side of discovery completes too
-    /// (a reader drops samples from writers it has not matched yet).
+    /// After subscribers matched, wait up to this long until they have matched us on their
+    /// side too (a reader drops samples from writers it has not matched yet; a reliable
+    /// one confirms with its first ACKNACK).
     #[arg(allow_negative_numbers = true, long, default_value_t = 0.5)]
     settle: f64,
     /// Keep the writer alive this long after the last sample so reliable delivery completes.

@@ -51,8 +51,7 @@ pub fn answer_states(
     // the recorder's reader matched would never reach the bag.
     let with_recorder = node.params().bool("wait_for_recorder");
     let needed = crate::expected_readers(topics::ACTION, with_recorder)?.max(1);
-    let settle = Duration::from_millis(500);
-    if !node.wait_for_subscribers(&actions, needed, timeout, settle, stop) {
+    if !node.wait_for_subscribers(&actions, needed, timeout, crate::SETTLE, stop) {
         if stop.load(Ordering::SeqCst) {
             return Ok(start);
         }

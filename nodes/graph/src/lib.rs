@@ -30,6 +30,11 @@ pub use plan::{RunParams, expected_readers, node_param_specs};
 /// last step it has written completely).
 pub const ACK_TOPIC: &str = causal_arm_protocol::topics::RECORDER_ACK;
 
+/// How long a node gives the readers it matched to match it on their side too (each
+/// confirms with its first ACKNACK, which rustdds readers send at once), before it
+/// publishes anyway.
+pub const SETTLE: std::time::Duration = std::time::Duration::from_millis(500);
+
 /// How long a node waits, before it exits, for its last samples to be acknowledged by
 /// every reader: a round trip on one machine, so the bound is reached only when a reader
 /// has left.

@@ -75,10 +75,10 @@ impl DdsStatePublisher {
         // so its count says nothing; the recorder creates its `/clock` reader before its
         // `/tf` one.
         macro_rules! wait {
-            ($publisher:expr, $topic:expr, $settle:expr) => {
+            ($publisher:expr, $topic:expr) => {
                 let needed = crate::expected_readers($topic, with_recorder)?;
                 if needed > 0
-                    && !node.wait_for_subscribers($publisher, needed, timeout, $settle, stop)
+                    && !node.wait_for_subscribers($publisher, needed, timeout, Duration::ZERO, stop)
                 {
                     if stop.load(Ordering::SeqCst) {
                         return Ok(false);
@@ -90,13 +90,32 @@ impl DdsStatePublisher {
                 }
             };
         }
-        let none = Duration::ZERO;
-        wait!(&self.joint_states, topics::JOINT_STATES, none);
-        wait!(&self.ef_pose, topics::EF_POSE, none);
-        wait!(&self.object_pose, topics::OBJECT_POSE, none);
-        wait!(&self.object_color, topics::OBJECT_COLOR, none);
-        wait!(&self.magnet, topics::MAGNET_STATE, none);
-        wait!(&self.tf, topics::TF, Duration::from_millis(500));
+        macro_rules! each_state_topic {
+            ($action:ident) => {
+                $action!(&self.joint_states, topics::JOINT_STATES);
+                $action!(&self.ef_pose, topics::EF_POSE);
+                $action!(&self.object_pose, topics::OBJECT_POSE);
+                $action!(&self.object_color, topics::OBJECT_COLOR);
+                $action!(&self.magnet, topics::MAGNET_STATE);
+                $action!(&self.tf, topics::TF);
+            };
+        }
+        each_state_topic!(wait);
+        // Then until every reader has matched us on its side too, within one settle time.
+        let deadline = Instant::now() + crate::SETTLE;
+        macro_rules! confirm {
+            ($publisher:expr, $topic:expr) => {
+                let needed = crate::expected_readers($topic, with_recorder)?;
+                if !RosNode::confirm_subscribers($publisher, needed, deadline) {
+                    tracing::debug!(
+                        "not every reader of {} confirmed within {:?}",
+                        $topic,
+                        crate::SETTLE
+                    );
+                }
+            };
+        }
+        each_state_topic!(confirm);
         Ok(true)
     }
 

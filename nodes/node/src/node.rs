@@ -201,9 +201,9 @@ impl RosNode {
         self.node_ref().time_now()
     }
 
-    /// Waits until `publisher` has `count` matched subscriptions, then `settle` more so the
-    /// subscribers' side of discovery completes too (a reader drops samples from writers
-    /// it has not matched yet). Returns false on timeout or when `stop` is set.
+    /// Waits until `publisher` has `count` matched subscriptions, then up to `settle` more
+    /// until they have matched it on their side too (see [`RosNode::confirm_subscribers`]).
+    /// Returns false on timeout or when `stop` is set.
     pub fn wait_for_subscribers<M: RosMessage>(
         &mut self,
         publisher: &Publisher<M>,
@@ -227,8 +227,24 @@ impl RosNode {
             }
             std::thread::sleep(std::time::Duration::from_millis(20));
         }
-        std::thread::sleep(settle);
+        Self::confirm_subscribers(publisher, count, std::time::Instant::now() + settle);
         true
+    }
+
+    /// Waits until `count` of `publisher`'s matched subscriptions have matched it on their
+    /// side too, or until `deadline`; returns whether they have. A subscription drops
+    /// messages from a publisher it does not know yet (they come later, by repair), so a
+    /// publisher whose first messages should arrive at once waits for this. A reliable
+    /// subscription confirms with its first ACKNACK (rustdds and Fast DDS ones at once);
+    /// others (best effort, or peers that wait for a HEARTBEAT) are given until
+    /// `deadline`, as a fixed settle time would.
+    pub fn confirm_subscribers<M: RosMessage>(
+        publisher: &Publisher<M>,
+        count: usize,
+        deadline: std::time::Instant,
+    ) -> bool {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        publisher.wait_for_confirmed_subscriptions(count, left)
     }
 
     /// Applies `-r from:=to` remappings to a topic or service name.

@@ -53,6 +53,16 @@ impl<M: Serialize> Publisher<M> {
       .map_err(Into::into)
   }
 
+  /// Waits until at least `count` matched reliable subscriptions have matched
+  /// this publisher on their side too (each has sent its first ACKNACK), or
+  /// `max_wait` passes; returns whether they have. A subscription drops
+  /// messages from a publisher it has not matched yet, so a publisher whose
+  /// first messages matter waits for this rather than sleeping after the match.
+  /// Best-effort subscriptions are not counted.
+  pub fn wait_for_confirmed_subscriptions(&self, count: usize, max_wait: std::time::Duration) -> bool {
+    self.datawriter.wait_for_confirmed_readers(count, max_wait)
+  }
+
   pub fn guid(&self) -> rustdds::GUID {
     self.datawriter.guid()
   }

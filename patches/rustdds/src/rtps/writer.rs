@@ -1510,6 +1510,12 @@ impl Writer {
       .map(RtpsReaderProxy::acked_up_to_before)
       .min();
     self.send_buffer.set_acked_frontier(frontier);
+    let confirmed = self
+      .readers
+      .values()
+      .filter(|rp| rp.qos().is_reliable() && rp.last_acknack_count.is_some())
+      .count();
+    self.send_buffer.set_confirmed_readers(confirmed);
   }
 
   // Send out missing data
@@ -3400,6 +3406,23 @@ mod tests {
       f.writer.process_pending();
       assert_eq!(f.writer.last_sent, SequenceNumber::new(2));
       assert_eq!(heartbeats(&f), pushed + 3);
+    }
+
+    // A matched reader counts as confirmed (it has matched the writer on its
+    // side too) once it has sent an ACKNACK, and no sooner.
+    #[test]
+    fn a_reader_is_confirmed_by_its_first_acknack() {
+      let mut f = Fixture::user(1, 8, None);
+      let waited = Instant::now();
+      assert!(!f
+        .writer
+        .send_buffer
+        .wait_for_confirmed_readers(1, StdDuration::from_millis(20)));
+      assert!(waited.elapsed() >= StdDuration::from_millis(20));
+      assert!(f.writer.send_buffer.wait_for_confirmed_readers(0, StdDuration::ZERO));
+      f.ack_nack([], 1); // the preemptive ACKNACK a reader sends on match
+      assert!(f.writer.send_buffer.wait_for_confirmed_readers(1, StdDuration::ZERO));
+      assert!(!f.writer.send_buffer.wait_for_confirmed_readers(2, StdDuration::ZERO));
     }
 
     // Under DDS Security every piggybacked HEARTBEAT asks for an ACKNACK: a

@@ -78,6 +78,11 @@ struct Inner {
   // readers for an ACKNACK now rather than at its next periodic HEARTBEAT
   // (most pushed samples carry a final HEARTBEAT, which asks for none).
   ack_requested: bool,
+
+  // Matched reliable readers that have sent an ACKNACK, i.e. that have matched
+  // this writer on their side too (a reader drops DATA from a writer it does
+  // not know yet). Maintained by the Writer (event loop).
+  confirmed_readers: usize,
 }
 
 struct Shared {
@@ -137,6 +142,7 @@ impl WriterSendBuffer {
           max_retain: max_retain.max(1),
           wakers: Vec::new(),
           ack_requested: false,
+          confirmed_readers: 0,
         }),
         progress: Condvar::new(),
         writer_guid,
@@ -342,6 +348,37 @@ impl WriterSendBuffer {
     };
     if advanced {
       Self::wake_all(&mut inner, &shared.progress);
+    }
+  }
+
+  /// Records how many matched reliable readers have sent an ACKNACK; wakes
+  /// `wait_for_confirmed_readers` when it grows.
+  pub fn set_confirmed_readers(&self, confirmed: usize) {
+    let shared = &*self.shared;
+    let mut inner = shared.inner.lock().unwrap();
+    let grew = confirmed > inner.confirmed_readers;
+    inner.confirmed_readers = confirmed;
+    if grew {
+      Self::wake_all(&mut inner, &shared.progress);
+    }
+  }
+
+  /// Waits until at least `count` matched reliable readers have sent an
+  /// ACKNACK, or `max_wait` elapses. Returns whether they have.
+  pub fn wait_for_confirmed_readers(&self, count: usize, max_wait: StdDuration) -> bool {
+    let shared = &*self.shared;
+    let mut inner = shared.inner.lock().unwrap();
+    let deadline = Instant::now() + max_wait;
+    loop {
+      if inner.confirmed_readers >= count {
+        return true;
+      }
+      let now = Instant::now();
+      if now >= deadline {
+        return false;
+      }
+      let (guard, _to) = shared.progress.wait_timeout(inner, deadline - now).unwrap();
+      inner = guard;
     }
   }
 

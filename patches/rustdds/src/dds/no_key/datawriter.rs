@@ -129,6 +129,12 @@ where
   pub fn wait_for_acknowledgments(&self, max_wait: Duration) -> WriteResult<bool, ()> {
     self.keyed_datawriter.wait_for_acknowledgments(max_wait)
   }
+
+  /// Waits until at least `count` matched reliable readers have matched this
+  /// writer on their side too (see the keyed `wait_for_confirmed_readers`).
+  pub fn wait_for_confirmed_readers(&self, count: usize, max_wait: Duration) -> bool {
+    self.keyed_datawriter.wait_for_confirmed_readers(count, max_wait)
+  }
   /*
   // status queries
   /// Unimplemented. <b>Do not use</b>.

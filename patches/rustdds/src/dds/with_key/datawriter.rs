@@ -470,6 +470,20 @@ where
     } // match
   }
 
+  /// Waits until at least `count` matched reliable readers have sent this
+  /// writer an ACKNACK, or `max_wait` passes; returns whether they have.
+  ///
+  /// A writer matches a reader before that reader has necessarily matched the
+  /// writer, and a reader drops DATA from a writer it does not know yet (it is
+  /// repaired later, after a HEARTBEAT). A reader sends its first ACKNACK once
+  /// it has matched the writer (rustdds and Fast DDS readers at once), so this
+  /// tells when samples written next will be taken on arrival, instead of
+  /// sleeping a guessed time after the match. Best-effort readers never
+  /// ACKNACK and are not counted.
+  pub fn wait_for_confirmed_readers(&self, count: usize, max_wait: Duration) -> bool {
+    self.send_buffer.wait_for_confirmed_readers(count, max_wait)
+  }
+
   /*
 
   /// Unimplemented. <b>Do not use</b>.

@@ -865,6 +865,10 @@ impl PartialEq for DomainParticipant {
   }
 }
 
+// Endpoint removals the event loop may have queued: enough for every endpoint
+// of a node to be dropped at once.
+const ENDPOINT_REMOVALS_QUEUED: usize = 256;
+
 #[derive(Clone)]
 pub struct DomainParticipantWeak {
   dpi: Weak<Mutex<DomainParticipantDisc>>,
@@ -1339,14 +1343,20 @@ impl DomainParticipantInner {
       )
       .collect();
 
-    // Adding readers. Capacities match the previous mio-extras channels.
+    // Adding readers. Capacities match the previous mio-extras channels, except
+    // for removals: a node that exits drops all its endpoints at once, and with
+    // room for only 4 the 5th waited 20 ms and then was not removed ("Cannot
+    // remove Reader … Full") whenever the event loop was busy for that long
+    // (other participants leaving at the same moment).
     let (sender_add_reader, receiver_add_reader) =
       wake_channel::<ReaderIngredients>(100, &dp_waker);
-    let (sender_remove_reader, receiver_remove_reader) = wake_channel::<GUID>(4, &dp_waker);
+    let (sender_remove_reader, receiver_remove_reader) =
+      wake_channel::<GUID>(ENDPOINT_REMOVALS_QUEUED, &dp_waker);
 
     // Writers
     let (add_writer_sender, add_writer_receiver) = wake_channel::<WriterIngredients>(10, &dp_waker);
-    let (remove_writer_sender, remove_writer_receiver) = wake_channel::<GUID>(4, &dp_waker);
+    let (remove_writer_sender, remove_writer_receiver) =
+      wake_channel::<GUID>(ENDPOINT_REMOVALS_QUEUED, &dp_waker);
     let (reader_ready, reader_ready_rx) = ready_channel(&dp_waker);
     let (writer_ready, writer_ready_rx) = ready_channel(&dp_waker);
 

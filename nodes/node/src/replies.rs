@@ -72,6 +72,9 @@ impl<Req: Message + 'static, Resp: Message + 'static> HeldReply for Held<'_, Req
 pub struct Replies<'a> {
     held: RefCell<Vec<Box<dyn HeldReply + 'a>>>,
     wait: Duration,
+    /// Replies sent without a matched reader of their client (logged only at first: a
+    /// stray program flooding the node would fill the log).
+    unmatched: std::cell::Cell<u64>,
 }
 
 impl Default for Replies<'_> {
@@ -92,6 +95,7 @@ impl<'a> Replies<'a> {
         Self {
             held: RefCell::new(Vec::new()),
             wait,
+            unmatched: std::cell::Cell::new(0),
         }
     }
 
@@ -139,10 +143,10 @@ impl<'a> Replies<'a> {
                 Served::Held
             }
             ReplyDue::Hold => {
-                tracing::warn!(
-                    "{} replies already wait for their clients' reply readers; sending this one at once",
+                self.count_unmatched(format_args!(
+                    "{} replies already wait for their clients' reply readers; sent one at once",
                     Self::MAX_HELD
-                );
+                ));
                 sent(held.send())
             }
             ReplyDue::Send | ReplyDue::SendUnmatched => sent(held.send()),
@@ -164,9 +168,17 @@ impl<'a> Replies<'a> {
         self.send_due(Instant::now())
     }
 
-    /// Sends every held reply now, matched or not: for a loop that is stopping.
-    pub fn flush(&self) -> Served {
-        self.send_due(Instant::now() + self.wait)
+    /// Sends every held reply now, matched or not, and logs how many replies went out
+    /// unmatched: for a loop that is stopping.
+    pub fn finish(&self) -> Served {
+        let served = self.send_due(Instant::now() + self.wait);
+        if self.unmatched() > 0 {
+            tracing::info!(
+                "{} replies went out before their client's reply reader matched",
+                self.unmatched()
+            );
+        }
+        served
     }
 
     fn send_due(&self, now: Instant) -> Served {
@@ -180,14 +192,32 @@ impl<'a> Replies<'a> {
                 continue;
             }
             if due == ReplyDue::SendUnmatched {
-                tracing::warn!(
-                    "no reply reader of a client matched within {:?}; sending its reply anyway",
+                self.count_unmatched(format_args!(
+                    "no reply reader of a client matched within {:?}; sent its reply anyway",
                     self.wait
-                );
+                ));
             }
             all_sent &= list.remove(index).send();
         }
         sent(all_sent)
+    }
+}
+
+impl Replies<'_> {
+    /// Replies logged one by one before they are only counted.
+    const LOGGED: u64 = 5;
+
+    /// Replies sent so far without a matched reader of their client.
+    pub fn unmatched(&self) -> u64 {
+        self.unmatched.get()
+    }
+
+    fn count_unmatched(&self, what: std::fmt::Arguments<'_>) {
+        let n = self.unmatched.get() + 1;
+        self.unmatched.set(n);
+        if n <= Self::LOGGED {
+            tracing::warn!("{what} ({n} so far; logged up to {})", Self::LOGGED);
+        }
     }
 }
 

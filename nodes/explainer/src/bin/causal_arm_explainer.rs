@@ -146,7 +146,7 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             served = replies.resend_due().fuse() => served,
         }
     });
-    replies.flush();
+    replies.finish();
     tracing::info!("stopping");
     Ok(())
 }

@@ -88,7 +88,7 @@ fn serve(
             served = replies.resend_due().fuse() => served,
         }
     });
-    replies.flush();
+    replies.finish();
     tracing::info!("stopping");
     Ok(())
 }

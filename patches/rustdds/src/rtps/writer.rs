@@ -3017,6 +3017,18 @@ mod tests {
       _participant_status: StatusChannelReceiver<DomainParticipantStatusEvent>,
     }
 
+    // Admits one sample of `payload_len` zero bytes, as `DataWriter::write` does.
+    fn admit_sample(send_buffer: &WriterSendBuffer, payload_len: usize) {
+      let data = DDSData::new(SerializedPayload::new(
+        RepresentationIdentifier::CDR_LE,
+        vec![0; payload_len],
+      ));
+      assert!(matches!(
+        send_buffer.admit_blocking(WriteOptions::default(), data, Some(StdDuration::ZERO)),
+        Admission::Admitted(_)
+      ));
+    }
+
     impl Fixture {
       // A reliable Writer that holds samples 1..=sample_count of `payload_len`
       // bytes and is matched with one remote reader. Without a locator the
@@ -3042,14 +3054,7 @@ mod tests {
           DEFAULT_WRITER_MAX_SAMPLES,
         );
         for _ in 0..sample_count {
-          let data = DDSData::new(SerializedPayload::new(
-            RepresentationIdentifier::CDR_LE,
-            vec![0; payload_len],
-          ));
-          assert!(matches!(
-            send_buffer.admit_blocking(WriteOptions::default(), data, Some(StdDuration::ZERO)),
-            Admission::Admitted(_)
-          ));
+          admit_sample(&send_buffer, payload_len);
         }
         let (status_sender, status) = sync_status_channel(4).unwrap();
         let (participant_status_sender, participant_status) = sync_status_channel(16).unwrap();
@@ -3392,16 +3397,7 @@ mod tests {
       assert_eq!(heartbeats(&f), pushed + 1, "the request was not cleared");
 
       // Requested with a sample still unsent: the sample, then the asking HEARTBEAT.
-      let data = DDSData::new(SerializedPayload::new(
-        RepresentationIdentifier::CDR_LE,
-        vec![0; 8],
-      ));
-      assert!(matches!(
-        f.writer
-          .send_buffer
-          .admit_blocking(WriteOptions::default(), data, Some(StdDuration::ZERO)),
-        Admission::Admitted(_)
-      ));
+      admit_sample(&f.writer.send_buffer, 8);
       f.writer.send_buffer.request_acknowledgment();
       f.writer.process_pending();
       assert_eq!(f.writer.last_sent, SequenceNumber::new(2));
@@ -3475,16 +3471,7 @@ mod tests {
       f.ack_nack([], 1); // preemptive: base 1, nothing requested
       assert_eq!(f.repair_round(), 3);
 
-      let data = DDSData::new(SerializedPayload::new(
-        RepresentationIdentifier::CDR_LE,
-        vec![0; 8],
-      ));
-      assert!(matches!(
-        f.writer
-          .send_buffer
-          .admit_blocking(WriteOptions::default(), data, Some(StdDuration::ZERO)),
-        Admission::Admitted(_)
-      ));
+      admit_sample(&f.writer.send_buffer, 8);
       f.writer.process_pending();
       assert_eq!(f.unsent(), 0, "not pushed to a reader that has ACKNACKed");
 

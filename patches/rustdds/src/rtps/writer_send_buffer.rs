@@ -366,20 +366,7 @@ impl WriterSendBuffer {
   /// Waits until at least `count` matched reliable readers have sent an
   /// ACKNACK, or `max_wait` elapses. Returns whether they have.
   pub fn wait_for_confirmed_readers(&self, count: usize, max_wait: StdDuration) -> bool {
-    let shared = &*self.shared;
-    let mut inner = shared.inner.lock().unwrap();
-    let deadline = Instant::now() + max_wait;
-    loop {
-      if inner.confirmed_readers >= count {
-        return true;
-      }
-      let now = Instant::now();
-      if now >= deadline {
-        return false;
-      }
-      let (guard, _to) = shared.progress.wait_timeout(inner, deadline - now).unwrap();
-      inner = guard;
-    }
+    self.wait_until(max_wait, |inner| inner.confirmed_readers >= count)
   }
 
   /// nonblocking-transmit: advance the "actually transmitted" frontier. Called
@@ -450,20 +437,21 @@ impl WriterSendBuffer {
   /// Synchronously wait until everything up to `target` is acknowledged, or
   /// `max_wait` elapses. Returns `true` if acknowledged.
   pub fn wait_for_acked_through(&self, target: SequenceNumber, max_wait: StdDuration) -> bool {
+    self.wait_until(max_wait, |inner| {
+      !inner.reliable_readers_present || inner.acked_before > target
+    })
+  }
+
+  // Waits on `progress` until `done` holds or `max_wait` elapses; whether it
+  // holds.
+  fn wait_until(&self, max_wait: StdDuration, done: impl Fn(&Inner) -> bool) -> bool {
     let shared = &*self.shared;
-    let mut inner = shared.inner.lock().unwrap();
-    let deadline = Instant::now() + max_wait;
-    loop {
-      if !inner.reliable_readers_present || inner.acked_before > target {
-        return true;
-      }
-      let now = Instant::now();
-      if now >= deadline {
-        return false;
-      }
-      let (guard, _to) = shared.progress.wait_timeout(inner, deadline - now).unwrap();
-      inner = guard;
-    }
+    let inner = shared.inner.lock().unwrap();
+    let (inner, _timeout) = shared
+      .progress
+      .wait_timeout_while(inner, max_wait, |inner| !done(inner))
+      .unwrap();
+    done(&inner)
   }
 
   /// Asks the Writer to request acknowledgements at its next wake-up (the

@@ -4,22 +4,17 @@
 //! acknowledging them (patches/rustdds-keep-all-reader-cache.diff). Starts DDS
 //! participants: run inside `tests/netns-run`, as the test command does.
 
+mod common;
+
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
-use causal_arm_node::{DiscoveryRange, RosArgs, RosEnv, RosNode, qos};
-use ros2_client::ServiceMapping;
+use causal_arm_node::{RosNode, qos};
 
 fn node(name: &str) -> RosNode {
-    let env = RosEnv {
-        domain_id: 97,
-        discovery_range: DiscoveryRange::Localhost,
-        service_mapping: ServiceMapping::Enhanced,
-        security: Default::default(),
-    };
-    RosNode::with_env(env, name, &[], &RosArgs::default()).expect("node")
+    common::loopback_node(97, name)
 }
 
 #[test]

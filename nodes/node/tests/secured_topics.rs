@@ -10,13 +10,14 @@
 //!
 //! Starts DDS participants: run inside `tests/netns-run`, as the test command does.
 
+mod common;
+
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use causal_arm_msgs::std_msgs::msg::String as RosString;
-use causal_arm_node::{DiscoveryRange, RosArgs, RosEnv, RosNode, qos};
+use causal_arm_node::{RosArgs, RosEnv, RosNode, qos};
 use causal_arm_security::{Keystore, SecurityEnv, Strategy};
-use ros2_client::ServiceMapping;
 
 const DOMAIN: u16 = 96;
 
@@ -32,10 +33,8 @@ fn env(keystore: Option<&Keystore>) -> RosEnv {
         None => SecurityEnv::default(),
     };
     RosEnv {
-        domain_id: DOMAIN,
-        discovery_range: DiscoveryRange::Localhost,
-        service_mapping: ServiceMapping::Enhanced,
         security,
+        ..common::loopback_env(DOMAIN)
     }
 }
 

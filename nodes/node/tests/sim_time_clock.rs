@@ -5,24 +5,20 @@
 //!
 //! Starts DDS participants: run inside `tests/netns-run`, as the test command does.
 
+mod common;
+
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
-use causal_arm_node::{DiscoveryRange, RosArgs, RosEnv, RosNode, qos};
-use ros2_client::{ParameterValue, Publisher, ServiceMapping};
+use causal_arm_node::{RosNode, qos};
+use ros2_client::{ParameterValue, Publisher};
 
 const DOMAIN: u16 = 97;
 
 fn node(name: &str) -> RosNode {
-    let env = RosEnv {
-        domain_id: DOMAIN,
-        discovery_range: DiscoveryRange::Localhost,
-        service_mapping: ServiceMapping::Enhanced,
-        security: Default::default(),
-    };
-    RosNode::with_env(env, name, &[], &RosArgs::default()).expect("node")
+    common::loopback_node(DOMAIN, name)
 }
 
 /// Waits up to 20 s until `publisher` has `count` subscribers; returns the last count.

@@ -146,6 +146,20 @@ def test_ros2_param_describe_shows_descriptions_ranges_and_choices(trainer_node)
     assert nope.type == 0
 
 
+def model_info_request_writer(participant, qos):
+    """A CycloneDDS writer of `/trainer/model_info` requests (Cyclone mapping) once the
+    trainer's request reader has matched it, and the client GUID its requests carry."""
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.topic import Topic
+
+    writer = DataWriter(participant, Topic(participant, "rq/trainer/model_infoRequest", idl.GetModelInfoRequest), qos=qos)
+    deadline = time.monotonic() + 20
+    while not writer.get_matched_subscriptions():
+        assert time.monotonic() < deadline, "the trainer's request reader never matched"
+        time.sleep(0.05)
+    return writer, int.from_bytes(writer.guid.bytes[:8], "little")
+
+
 def test_a_reply_waits_for_the_clients_reply_reader(trainer_node):
     """The discovery race of a client's first call: its request reaches the server before the
     server has matched the client's reply reader. A volatile reply written then reaches no
@@ -155,18 +169,12 @@ def test_a_reply_waits_for_the_clients_reply_reader(trainer_node):
     reply reader only after its request went out, so the race is certain, not a matter of
     luck: without the wait no reply arrives."""
     from cyclonedds.domain import DomainParticipant
-    from cyclonedds.pub import DataWriter
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
 
     participant = DomainParticipant(41)
     qos = idl.ros_default_qos(depth=100)
-    writer = DataWriter(participant, Topic(participant, "rq/trainer/model_infoRequest", idl.GetModelInfoRequest), qos=qos)
-    deadline = time.monotonic() + 20
-    while not writer.get_matched_subscriptions():
-        assert time.monotonic() < deadline, "the trainer's request reader never matched"
-        time.sleep(0.05)
-    guid = int.from_bytes(writer.guid.bytes[:8], "little")
+    writer, guid = model_info_request_writer(participant, qos)
     writer.write(idl.GetModelInfoRequest(client_guid=guid, sequence_number=1, model="fm"))
     time.sleep(0.25)
     reader = DataReader(participant, Topic(participant, "rr/trainer/model_infoReply", idl.GetModelInfoReply), qos=qos)
@@ -191,17 +199,10 @@ def test_a_client_without_a_reply_reader_does_not_hold_up_other_clients(trainer_
     import threading
 
     from cyclonedds.domain import DomainParticipant
-    from cyclonedds.pub import DataWriter
-    from cyclonedds.topic import Topic
 
     participant = DomainParticipant(41)
     qos = idl.ros_default_qos(depth=100)
-    writer = DataWriter(participant, Topic(participant, "rq/trainer/model_infoRequest", idl.GetModelInfoRequest), qos=qos)
-    deadline = time.monotonic() + 20
-    while not writer.get_matched_subscriptions():
-        assert time.monotonic() < deadline, "the trainer's request reader never matched"
-        time.sleep(0.05)
-    guid = int.from_bytes(writer.guid.bytes[:8], "little")
+    writer, guid = model_info_request_writer(participant, qos)
     flooding = threading.Event()
     flooding.set()
 

@@ -102,16 +102,7 @@ pub fn answer_states(
         }
     }
 
-    // Let reliable delivery of the last action complete.
-    if !actions
-        .wait_for_all_acked(crate::FINAL_DELIVERY)
-        .unwrap_or(false)
-    {
-        tracing::debug!(
-            "the last action was not confirmed within {:?}",
-            crate::FINAL_DELIVERY
-        );
-    }
+    crate::wait_for_final_delivery(&actions, "the last action");
     tracing::info!(
         "{who} answered {answered} of {total} steps; {}",
         refusal_summary(&feeds, &joiner)

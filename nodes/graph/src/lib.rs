@@ -40,4 +40,18 @@ pub const SETTLE: std::time::Duration = std::time::Duration::from_millis(500);
 /// has left.
 pub const FINAL_DELIVERY: std::time::Duration = std::time::Duration::from_millis(300);
 
+/// Before a node exits: waits up to [`FINAL_DELIVERY`] until every reader has
+/// acknowledged what `publisher` wrote (`what` names it in the log if not).
+pub(crate) fn wait_for_final_delivery<M: serde::Serialize>(
+    publisher: &ros2_client::Publisher<M>,
+    what: &str,
+) {
+    if !publisher
+        .wait_for_all_acked(FINAL_DELIVERY)
+        .unwrap_or(false)
+    {
+        tracing::debug!("{what} was not acknowledged within {FINAL_DELIVERY:?}");
+    }
+}
+
 pub use causal_arm_node::run::{node_main, stop_flag, take_next};

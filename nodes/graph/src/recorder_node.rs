@@ -167,15 +167,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     // Every step has landed now: acknowledge the last one, and let reliable delivery reach
     // the simulator (it waits for this very acknowledgement before it exits).
     acknowledge(&ack, &mut acked, last_written);
-    if !ack
-        .wait_for_all_acked(crate::FINAL_DELIVERY)
-        .unwrap_or(false)
-    {
-        tracing::debug!(
-            "the last acknowledgement was not confirmed within {:?}",
-            crate::FINAL_DELIVERY
-        );
-    }
+    crate::wait_for_final_delivery(&ack, "the last acknowledgement");
     tracing::info!(
         "wrote {} ({written} steps of {total})",
         summary.dir.display()

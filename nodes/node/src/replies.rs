@@ -89,6 +89,8 @@ impl<'a> Replies<'a> {
     pub const MAX_HELD: usize = 64;
     /// How often held replies look for their client's reader again.
     pub const RECHECK: Duration = Duration::from_millis(2);
+    /// Replies sent unmatched that are logged one by one before they are only counted.
+    const LOGGED: u64 = 5;
 
     /// Replies held up to `wait` each.
     pub fn new(wait: Duration) -> Self {
@@ -129,17 +131,17 @@ impl<'a> Replies<'a> {
         Req: Message + 'static,
         Resp: Message + 'static,
     {
-        let held = Box::new(Held {
-            server,
-            id,
-            response,
-            deadline: Instant::now() + self.wait,
-        });
-        let due = ReplyDue::decide(held.matched(), Instant::now(), held.deadline);
+        let now = Instant::now();
+        let deadline = now + self.wait;
         let mut list = self.held.borrow_mut();
-        match due {
+        match ReplyDue::decide(server.reply_reader_matched(&id), now, deadline) {
             ReplyDue::Hold if list.len() < Self::MAX_HELD => {
-                list.push(held);
+                list.push(Box::new(Held {
+                    server,
+                    id,
+                    response,
+                    deadline,
+                }));
                 Served::Held
             }
             ReplyDue::Hold => {
@@ -147,9 +149,11 @@ impl<'a> Replies<'a> {
                     "{} replies already wait for their clients' reply readers; sent one at once",
                     Self::MAX_HELD
                 ));
-                sent(held.send())
+                sent(server.send_response_now(id, response).is_ok())
             }
-            ReplyDue::Send | ReplyDue::SendUnmatched => sent(held.send()),
+            ReplyDue::Send | ReplyDue::SendUnmatched => {
+                sent(server.send_response_now(id, response).is_ok())
+            }
         }
     }
 
@@ -201,11 +205,6 @@ impl<'a> Replies<'a> {
         }
         sent(all_sent)
     }
-}
-
-impl Replies<'_> {
-    /// Replies logged one by one before they are only counted.
-    const LOGGED: u64 = 5;
 
     /// Replies sent so far without a matched reader of their client.
     pub fn unmatched(&self) -> u64 {

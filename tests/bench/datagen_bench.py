@@ -11,6 +11,9 @@ Runs, in one go on this machine:
     and `launch exp1 --shards 2` (two graphs in two ROS domains)
   * `causal-arm launch exp1` (simulator, babbler and recorder as three DDS processes in
     lock-step; only when run inside tests/netns-run, since it starts DDS participants)
+  * `causal-arm launch exp1 --composed` (the same three nodes composed in one process,
+    as an rclcpp component container: they hand each other messages in process and still
+    publish every topic on DDS), alone and with `--shards 2`
   * a PyBullet script doing the paper's exp1 loop: pybullet_data's kuka_iiwa, random
     normal joint targets (sigma 0.35, clipped to the limits), POSITION_CONTROL with the
     URDF forces, 10 substeps at 240 Hz, reading joint states and the end-effector pose
@@ -69,7 +72,7 @@ def in_private_netns() -> bool:
 
 
 SIM_LOG = re.compile(r"^(\S+Z)\s+INFO simulator (starting|done)", re.M)
-RECORDED = re.compile(r"\((\d+) of (\d+) steps over DDS")
+RECORDED = re.compile(r"\((\d+) of (\d+) steps (?:over DDS|by nodes composed)")
 
 
 def stepping_seconds(log: str) -> float:
@@ -87,17 +90,19 @@ def stepping_seconds(log: str) -> float:
     return (max(stamps["done"]) - min(stamps["starting"])).total_seconds()
 
 
-def ours_dds(binary: str, steps: int, shards: int = 1) -> tuple[float, float, int]:
+def ours_dds(binary: str, steps: int, shards: int = 1, composed: bool = False) -> tuple[float, float, int]:
     """(steps/s over the whole `launch`, start-up and discovery included (~1 s); steps/s
-    while stepping; steps requested but not in the bag)."""
+    while stepping; steps requested but not in the bag). `composed`: the three nodes in one
+    process, handing each other their messages in process (`launch --composed`)."""
     import os
 
     with tempfile.TemporaryDirectory() as tmp:
         out = pathlib.Path(tmp) / "bag"
         env = {**os.environ, "ROS_DOMAIN_ID": "42", "RUST_LOG": "info"}
         start = time.perf_counter()
-        run = subprocess.run([binary, "launch", "exp1", "--steps", str(steps), "--seed", "1", "--shards",
-                              str(shards), "--out", str(out)], check=True, capture_output=True, text=True, env=env)
+        command = [binary, "launch", "exp1", "--steps", str(steps), "--seed", "1", "--shards", str(shards),
+                   "--out", str(out)] + ["--composed"] * composed
+        run = subprocess.run(command, check=True, capture_output=True, text=True, env=env)
         whole = time.perf_counter() - start
         log = run.stdout + run.stderr
         recorded = RECORDED.findall(log)
@@ -137,6 +142,10 @@ def main():
     if in_private_netns():
         graphs.append(("causal-arm launch exp1 (3 DDS processes, lock-step)", ours_dds(args.bin, args.steps)))
         graphs.append(("causal-arm launch exp1 --shards 2 (2 graphs)", ours_dds(args.bin, args.steps, 2)))
+        graphs.append(("causal-arm launch exp1 --composed (3 nodes, 1 process)",
+                       ours_dds(args.bin, args.steps, composed=True)))
+        graphs.append(("causal-arm launch exp1 --composed --shards 2",
+                       ours_dds(args.bin, args.steps, 2, composed=True)))
     else:
         print("not inside tests/netns-run: skipping the DDS graph rows")
     rows += [(name, whole) for name, (whole, _, _) in graphs]

@@ -365,3 +365,15 @@ class MagnetState(IdlStruct, typename="causal_arm_msgs::msg::dds_::MagnetState_"
     header: Header = field(default_factory=Header)
     on: bool = False
     holding: bool = False
+
+
+@dataclass
+class Log(IdlStruct, typename="rcl_interfaces::msg::dds_::Log_"):
+    """rcl_interfaces/msg/Log, what every node writes on /rosout."""
+    stamp: Time = field(default_factory=Time)
+    level: t.uint8 = 0
+    name: str = ""
+    msg: str = ""
+    file: str = ""
+    function: str = ""
+    line: t.uint32 = 0

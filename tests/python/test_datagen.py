@@ -229,12 +229,14 @@ def _canonical(bag):
     return {t: [(ts, norm(m)) for ts, m in msgs] for t, msgs in topics.items()}
 
 
-@pytest.mark.parametrize("flags", [[], ["--move-while-switching", "false"], ["--arm", "dynamic"]])
-def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, private_netns, flags):
+@pytest.mark.parametrize("flags, launch_flags", [([], []), (["--move-while-switching", "false"], []),
+                                                 (["--arm", "dynamic"], []), ([], ["--composed"])])
+def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, private_netns, flags,
+                                         launch_flags):
     env = {"ROS_DOMAIN_ID": "17", "RUST_LOG": "warn"}
     dds = tmp_path / "dds"
-    r = run_cli("launch", "exp2", "--episodes", "1", "--seed", "8", *flags, "--out", dds, env=env,
-                timeout=600)
+    r = run_cli("launch", "exp2", "--episodes", "1", "--seed", "8", *flags, *launch_flags, "--out", dds,
+                env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     assert str(dds) in r.stdout
     local = tmp_path / "local"
@@ -249,8 +251,10 @@ def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, priv
         assert a[topic] == b[topic], f"{topic} differs between launch and generate"
 
 
-def test_sigint_mid_run_leaves_a_finalized_bag(causal_arm_bin, tmp_path, private_netns):
-    """Also: a CycloneDDS subscriber beside the running graph receives plausible states."""
+@pytest.mark.parametrize("composed", [False, True], ids=["processes", "composed"])
+def test_sigint_mid_run_leaves_a_finalized_bag(causal_arm_bin, tmp_path, private_netns, composed):
+    """Also: a CycloneDDS subscriber beside the running graph receives plausible states,
+    also from nodes composed in one process (they still publish every topic on DDS)."""
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
@@ -263,8 +267,8 @@ def test_sigint_mid_run_leaves_a_finalized_bag(causal_arm_bin, tmp_path, private
     env = {**os.environ, "ROS_DOMAIN_ID": "18", "RUST_LOG": "warn"}
     out = tmp_path / "interrupted"
     proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", "100000", "--seed", "1",
-                             "--out", str(out)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+                             "--out", str(out)] + ["--composed"] * composed, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not any(out.glob("*.mcap")):
         time.sleep(0.2)
@@ -280,7 +284,8 @@ def test_sigint_mid_run_leaves_a_finalized_bag(causal_arm_bin, tmp_path, private
     n = len(topics["/joint_states"])
     assert 0 < n < 100000
     # The launcher reports what the bag holds, not the plan, and fails the interrupted run.
-    assert f"({n} of 100000 steps over DDS" in stdout, stdout
+    how = "by nodes composed in one process" if composed else "over DDS"
+    assert f"({n} of 100000 steps {how} in" in stdout, stdout
     assert proc.returncode == 1 and f"stopped after {n} of 100000 steps" in stderr, stderr[-2000:]
     for topic in STEP_TOPICS:
         assert len(topics[topic]) == n, topic
@@ -294,6 +299,47 @@ def test_sigint_mid_run_leaves_a_finalized_bag(causal_arm_bin, tmp_path, private
         p = m.pose.position
         assert m.header.frame_id == "world"
         assert 0.0 < np.hypot(p.x, p.y) < 1.4 and -0.5 < p.z < 1.4
+
+
+def test_a_composed_node_that_fails_stops_the_others_naming_it(run_cli, tmp_path, private_netns):
+    """Composed nodes share their process: the recorder failing (here it cannot create its
+    bag) stops the simulator and the babbler at once, and the launch fails naming it."""
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    env = {"ROS_DOMAIN_ID": "27", "RUST_LOG": "warn"}
+    start = time.monotonic()
+    r = run_cli("launch", "exp1", "--steps", "500", "--composed", "--out", blocker / "bag", env=env,
+                timeout=120)
+    assert r.returncode == 1, r.stderr[-2000:]
+    assert "causal_arm_recorder failed" in r.stderr and str(blocker) in r.stderr, r.stderr[-2000:]
+    assert time.monotonic() - start < 30, "the other nodes waited out their timeouts"
+
+
+def test_composed_nodes_each_log_to_rosout_as_themselves(causal_arm_bin, tmp_path, private_netns):
+    """Three nodes in one process: a CycloneDDS /rosout reader sees each node's lines under
+    that node's name, also after the first of them (the babbler) has ended."""
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+    from ros_idl import Log, ros_default_qos
+
+    participant = DomainParticipant(28)
+    reader = DataReader(participant, Topic(participant, "rt/rosout", Log), qos=ros_default_qos(1000))
+    env = {**os.environ, "ROS_DOMAIN_ID": "28", "RUST_LOG": "info"}
+    proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", "20000", "--composed",
+                             "--out", str(tmp_path / "bag")], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    lines = []
+    while proc.poll() is None:
+        lines += [(m.name, m.msg) for m in reader.take(N=100) if isinstance(m, Log)]
+        time.sleep(0.05)
+    time.sleep(0.5)
+    lines += [(m.name, m.msg) for m in reader.take(N=1000) if isinstance(m, Log)]
+    assert proc.returncode == 0, proc.stderr.read()[-2000:]
+    said = {text.split()[0]: name for name, text in lines
+            if text.startswith(("babbler answered", "simulator done", "wrote "))}
+    assert said == {"babbler": "causal_arm_babbler", "simulator": "causal_arm_sim",
+                    "wrote": "causal_arm_recorder"}, lines
 
 
 def test_sigkill_of_the_launcher_stops_every_node_and_finalizes_the_bag(causal_arm_bin, tmp_path, private_netns):
@@ -400,23 +446,26 @@ def test_no_acknowledged_step_is_lost_when_the_recorder_is_killed(causal_arm_bin
         assert len(topics[topic]) == len(stamps), topic
 
 
-@pytest.mark.parametrize("victim", ["causal_arm_recorder", "causal_arm_sim", "launcher"])
+@pytest.mark.parametrize("victim", ["causal_arm_recorder", "causal_arm_sim", "launcher", "composed"])
 def test_a_killed_launch_resumes_into_the_bag_of_an_uninterrupted_run(causal_arm_bin, run_cli, tmp_path,
                                                                       private_netns, victim):
-    """SIGKILL of a node (or of the launcher) mid-run, then `launch --resume`: the bag ends
-    equal to `generate` of the same seed, no step missing or duplicated."""
-    args = ["exp2", "--episodes", "16", "--seed", "3"]
+    """SIGKILL of a node (or of the launcher, or of the process holding the composed nodes)
+    mid-run, then `launch --resume`: the bag ends equal to `generate` of the same seed, no
+    step missing or duplicated."""
+    composed = ["--composed"] if victim == "composed" else []
+    # Composed nodes run several times faster: a longer run is still going when killed.
+    args = ["exp2", "--episodes", "40" if composed else "16", "--seed", "3"]
     env = {**os.environ, "ROS_DOMAIN_ID": "22", "RUST_LOG": "warn"}
     out = tmp_path / "resumed"
-    proc = subprocess.Popen([str(causal_arm_bin), "launch", *args, "--out", str(out)], env=env,
+    proc = subprocess.Popen([str(causal_arm_bin), "launch", *args, *composed, "--out", str(out)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not any(out.glob("*.mcap")):
         time.sleep(0.2)
-    time.sleep(2.5)
+    time.sleep(1.0 if composed else 2.5)
     assert proc.poll() is None, "the run ended before the kill"
     children = [int(c) for c in pathlib.Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
-    if victim == "launcher":
+    if victim in ("launcher", "composed"):
         proc.kill()
     else:
         os.kill(next(c for c in children if victim.startswith(pathlib.Path(f"/proc/{c}/comm").read_text().strip())),
@@ -428,7 +477,7 @@ def test_a_killed_launch_resumes_into_the_bag_of_an_uninterrupted_run(causal_arm
     deadline = time.monotonic() + 15
     while time.monotonic() < deadline and any(pathlib.Path(f"/proc/{c}").exists() for c in children):
         time.sleep(0.1)
-    r = run_cli("launch", *args, "--out", out, "--resume", env=env, timeout=600)
+    r = run_cli("launch", *args, *composed, "--out", out, "--resume", env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     local = tmp_path / "local"
     assert run_cli("generate", *args, "--out", local).returncode == 0

@@ -32,6 +32,11 @@ pub struct LaunchArgs {
     /// its share of the run into OUT/shard-i (a shard set, as `generate --shards`).
     #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub shards: i64,
+    /// Run the graph's nodes composed in this one process, as an rclcpp component
+    /// container does: each keeps its name, parameters and topics on DDS, and what one
+    /// publishes for another is handed over in process (faster; they share one fate).
+    #[arg(long)]
+    pub composed: bool,
     /// Set by a sharded launch for each of its graphs: this graph's place in the set.
     #[arg(long, hide = true, requires = "shard_count")]
     pub shard_index: Option<u64>,
@@ -194,12 +199,19 @@ pub fn run(args: &LaunchArgs, ros_args: &RosArgs) -> anyhow::Result<()> {
         );
     }
     let start = Instant::now();
-    run_graph(&options, commands, ros_args)?;
+    match args.composed {
+        true => run_composed(&options, commands, ros_args)?,
+        false => run_graph(&options, commands, ros_args)?,
+    }
     let secs = start.elapsed().as_secs_f64();
     let total = options.plan.total_steps();
     let recorded = recorded_steps(&options.out)?;
+    let how = match args.composed {
+        true => "by nodes composed in one process",
+        false => "over DDS",
+    };
     println!(
-        "bag: {} ({recorded} of {total} steps over DDS in {secs:.1} s, {:.0} steps/s)",
+        "bag: {} ({recorded} of {total} steps {how} in {secs:.1} s, {:.0} steps/s)",
         options.out.display(),
         recorded as f64 / secs
     );
@@ -220,25 +232,107 @@ pub(crate) fn run_graph(
     commands: Vec<(String, Vec<String>)>,
     ros_args: &RosArgs,
 ) -> anyhow::Result<()> {
-    let ends_run = graph()?
-        .nodes
-        .iter()
-        .find(|n| n.ends_run)
-        .ok_or_else(|| anyhow::anyhow!("the graph has no node that ends the run"))?;
+    let ends_run = run_ending_node()?;
     let recorder_at = (commands.iter())
-        .position(|(name, _)| *name == ends_run.name)
-        .with_context(|| format!("{} is not among the nodes to start", ends_run.name))?;
+        .position(|(name, _)| *name == ends_run)
+        .with_context(|| format!("{ends_run} is not among the nodes to start"))?;
     let stop = causal_arm_node::runtime::stop_flag();
     let mut children = spawn_nodes(commands)?;
-    let (recorder_name, mut recorder) = children.remove(recorder_at);
+    let mut recorder = children.remove(recorder_at);
     let outcome = follow_run(options, ros_args, &stop, &mut recorder, &mut children);
     // Whatever ended the run, no node outlives it.
     stop_nodes(&mut children)?;
-    let recorder_status = outcome?;
-    if !recorder_status.success() {
-        bail!("{recorder_name} failed ({recorder_status})");
+    if let Err(failure) = outcome? {
+        bail!("{ends_run} failed ({failure})");
     }
     Ok(())
+}
+
+/// As [`run_graph`], with the nodes composed in this process (`launch --composed`, see
+/// [`causal_arm_graph::compose`]): they end as processes would, the recorder last.
+fn run_composed(
+    options: &GenerateOptions,
+    commands: Vec<(String, Vec<String>)>,
+    ros_args: &RosArgs,
+) -> anyhow::Result<()> {
+    let ends_run = run_ending_node()?;
+    let mut nodes = Vec::new();
+    for (name, args) in commands {
+        let argv: Vec<String> = std::iter::once(name.clone()).chain(args).collect();
+        let (node_args, _) = RosArgs::split(&argv)?;
+        nodes.push((name, node_args));
+    }
+    let stop = causal_arm_node::runtime::stop_flag();
+    let mut running = causal_arm_graph::compose::spawn(nodes)?;
+    let recorder_at = (running.iter())
+        .position(|n| n.name == ends_run)
+        .with_context(|| format!("{ends_run} is not among the nodes to start"))?;
+    let mut recorder = running.remove(recorder_at);
+    let outcome = follow_run(options, ros_args, &stop, &mut recorder, &mut running);
+    // Whatever ended the run, no node outlives it.
+    stop.store(true, Ordering::SeqCst);
+    for node in &mut running {
+        if let Some(Err(e)) = node.finish() {
+            tracing::warn!("{}: {e:#}", node.name);
+        }
+    }
+    if let Err(failure) = outcome? {
+        bail!("{ends_run} failed ({failure})");
+    }
+    Ok(())
+}
+
+/// The graph file's node whose exit ends the run (the recorder).
+fn run_ending_node() -> anyhow::Result<String> {
+    Ok(graph()?
+        .nodes
+        .iter()
+        .find(|n| n.ends_run)
+        .ok_or_else(|| anyhow::anyhow!("the graph has no node that ends the run"))?
+        .name
+        .clone())
+}
+
+/// A started node, a process or a composed thread, as [`follow_run`] watches it.
+trait Started {
+    /// The node's name.
+    fn name(&self) -> &str;
+    /// `None` while it runs; then `Ok` if it succeeded, else what went wrong.
+    fn exited(&mut self) -> anyhow::Result<Option<Result<(), String>>>;
+    /// Asks it to finish cleanly (the recorder finalizes its bag).
+    fn interrupt(&self);
+}
+
+impl Started for (String, Child) {
+    fn name(&self) -> &str {
+        &self.0
+    }
+
+    fn exited(&mut self) -> anyhow::Result<Option<Result<(), String>>> {
+        Ok(self.1.try_wait()?.map(|status| match status.success() {
+            true => Ok(()),
+            false => Err(status.to_string()),
+        }))
+    }
+
+    fn interrupt(&self) {
+        interrupt(&self.1);
+    }
+}
+
+impl Started for causal_arm_graph::compose::ComposedNode {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn exited(&mut self) -> anyhow::Result<Option<Result<(), String>>> {
+        Ok(self.try_finish().map(|r| r.map_err(|e| format!("{e:#}"))))
+    }
+
+    /// Composed nodes share the process's stop flag, as they share its signals.
+    fn interrupt(&self) {
+        causal_arm_node::runtime::stop_flag().store(true, Ordering::SeqCst);
+    }
 }
 
 /// Steps in the finished bag: its `/babbler/action` messages, one per step (read from
@@ -255,14 +349,14 @@ pub(crate) fn recorded_steps(bag: &std::path::Path) -> anyhow::Result<u64> {
 
 /// Shows the run's progress from the recorder's acknowledgements until the recorder
 /// exits; Ctrl-C asks the recorder to finalize, and another node failing ends the run
-/// with the bag finalized.
-fn follow_run(
+/// with the bag finalized. Gives the recorder's outcome.
+fn follow_run<N: Started>(
     options: &GenerateOptions,
     ros_args: &RosArgs,
     stop: &AtomicBool,
-    recorder: &mut Child,
-    others: &mut [(String, Child)],
-) -> anyhow::Result<std::process::ExitStatus> {
+    recorder: &mut N,
+    others: &mut [N],
+) -> anyhow::Result<Result<(), String>> {
     let mut node = RosNode::new("causal_arm_launch", &[], ros_args)?;
     let acks = node.subscription::<Clock>(causal_arm_graph::ACK_TOPIC, qos::default_reliable())?;
     let step_ns = options.sim.dt * options.sim.substeps as f64 * 1e9;
@@ -277,27 +371,35 @@ fn follow_run(
             counter
                 .set(((ns_from_time(&ack.clock) as f64 / step_ns).round() as u64 + 1).min(total));
         }
-        if let Some(status) = recorder.try_wait()? {
+        if let Some(outcome) = recorder.exited()? {
             counter.finish();
-            return Ok(status);
+            return Ok(outcome);
         }
         if stop.load(Ordering::SeqCst) {
-            interrupt(recorder);
+            recorder.interrupt();
         }
-        for (name, child) in others.iter_mut() {
-            if let Some(status) = child.try_wait()?
-                && !status.success()
-            {
-                interrupt(recorder);
+        for other in others.iter_mut() {
+            if let Some(Err(failure)) = other.exited()? {
+                recorder.interrupt();
                 counter.finish();
-                let _ = wait_with_timeout(recorder, Duration::from_secs(30));
+                wait_for_exit(recorder, Duration::from_secs(30))?;
                 bail!(
-                    "{name} failed ({status}); the recorder finalized the bag with the steps it had"
+                    "{} failed ({failure}); the recorder finalized the bag with the steps it had",
+                    other.name()
                 );
             }
         }
         std::thread::sleep(Duration::from_millis(50));
     }
+}
+
+/// Waits up to `limit` for `node` to exit.
+fn wait_for_exit<N: Started>(node: &mut N, limit: Duration) -> anyhow::Result<()> {
+    let start = Instant::now();
+    while node.exited()?.is_none() && start.elapsed() < limit {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

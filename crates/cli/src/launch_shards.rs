@@ -46,7 +46,7 @@ pub fn run(
     let mut children = Vec::new();
     for (i, shard) in shards.iter().enumerate() {
         let domain = base + i as u64;
-        let child = spawn_shard(shard, domain, ros_args)
+        let child = spawn_shard(shard, domain, args.composed, ros_args)
             .with_context(|| format!("starting shard {i} (domain {domain})"))?;
         children.push((format!("shard {i} (domain {domain})"), child));
     }
@@ -54,7 +54,7 @@ pub fn run(
     let steps = options.plan.total_steps();
     let secs = start.elapsed().as_secs_f64();
     println!(
-        "shard set: {} ({count} graphs, {steps} steps over DDS in {secs:.1} s, {:.0} steps/s)",
+        "shard set: {} ({count} graphs, {steps} steps in {secs:.1} s, {:.0} steps/s)",
         options.out.display(),
         steps as f64 / secs
     );
@@ -62,11 +62,16 @@ pub fn run(
 }
 
 /// This executable's `launch` of one shard, in `domain`, dying with its parent.
-fn spawn_shard(shard: &GenerateOptions, domain: u64, ros_args: &RosArgs) -> anyhow::Result<Child> {
+fn spawn_shard(
+    shard: &GenerateOptions,
+    domain: u64,
+    composed: bool,
+    ros_args: &RosArgs,
+) -> anyhow::Result<Child> {
     let exe = std::env::current_exe().context("locating the causal-arm executable")?;
     let mut command = Command::new(exe);
     command
-        .args(shard_args(shard, ros_args))
+        .args(shard_args(shard, composed, ros_args))
         .env("ROS_DOMAIN_ID", domain.to_string())
         .stdin(Stdio::null());
     // SAFETY: prctl is async-signal-safe and touches only the child being started; a
@@ -83,7 +88,7 @@ fn spawn_shard(shard: &GenerateOptions, domain: u64, ros_args: &RosArgs) -> anyh
 }
 
 /// The command line of one shard's `launch`: its share, seed, output and place in the set.
-fn shard_args(shard: &GenerateOptions, ros_args: &RosArgs) -> Vec<String> {
+fn shard_args(shard: &GenerateOptions, composed: bool, ros_args: &RosArgs) -> Vec<String> {
     let size = match shard.experiment {
         Experiment::Exp1 => [
             "--steps".to_owned(),
@@ -119,6 +124,9 @@ fn shard_args(shard: &GenerateOptions, ros_args: &RosArgs) -> Vec<String> {
     );
     if shard.overwrite {
         args.push("--overwrite".to_owned());
+    }
+    if composed {
+        args.push("--composed".to_owned());
     }
     let mut ros = Vec::new();
     if let Some(enclave) = &ros_args.enclave {
@@ -186,7 +194,7 @@ mod tests {
             enclave: Some("/causal_arm".into()),
             ..RosArgs::default()
         };
-        let args = shard_args(&shards[1], &ros).join(" ");
+        let args = shard_args(&shards[1], false, &ros).join(" ");
         let seed = causal_arm_protocol::shard_seed(9, 1);
         assert!(args.starts_with("launch exp2 --episodes 1 "), "{args}");
         assert!(

@@ -15,7 +15,8 @@ use causal_arm_protocol::{
 
 use crate::RunParams;
 use crate::feed::{drain_or_wait, refusal_summary};
-use crate::parts::{StateParts, state_feeds};
+use crate::intra::{IntraPort, Outlet};
+use crate::parts::{FeedSource, StateParts, state_feeds};
 use crate::screen::Screen;
 
 /// Where a state falls in the run.
@@ -33,9 +34,11 @@ pub struct StepPlace {
 /// run's last step or `stop`; returns how many steps were answered in all. `node` takes
 /// its `wait_for_recorder` and `timeout` parameters from its graph-file declaration;
 /// `who` names it in the closing log line ("babbler answered 500 of 500 steps; …").
+/// Composed with the simulator (`port`), it takes the states and hands its actions over in
+/// process (see [`crate::intra`]).
 pub fn answer_states(
     who: &str,
-    node: &mut RosNode,
+    (node, port): (&mut RosNode, Option<IntraPort<'_>>),
     run: &RunParams,
     start: u64,
     stop: &AtomicBool,
@@ -44,14 +47,23 @@ pub fn answer_states(
     let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let recorded = qos::recorded();
     let screen = Rc::new(Screen::new(node)?);
-    let feeds = state_feeds::<StateParts>(node, &screen, &recorded)?;
-    let actions = node.publisher::<Action>(topics::ACTION, recorded)?;
+    let mut source = FeedSource {
+        node,
+        screen: &screen,
+        port,
+    };
+    let feeds = state_feeds::<StateParts>(&mut source, &recorded)?;
+    let dds_actions = node.publisher::<Action>(topics::ACTION, recorded)?;
+    let actions = Outlet::new(dds_actions, topics::ACTION, port)?;
 
     // The simulator and, when the run is recorded, the recorder: an action written before
-    // the recorder's reader matched would never reach the bag.
+    // the recorder's reader matched would never reach the bag. Those composed with this
+    // node take it in process.
     let with_recorder = node.params().bool("wait_for_recorder");
-    let needed = crate::expected_readers(topics::ACTION, with_recorder)?.max(1);
-    if !node.wait_for_subscribers(&actions, needed, timeout, crate::SETTLE, stop) {
+    let declared = crate::expected_readers(topics::ACTION, with_recorder)?.max(1);
+    let needed = declared.saturating_sub(actions.local_subscribers());
+    if needed > 0 && !node.wait_for_subscribers(actions.dds(), needed, timeout, crate::SETTLE, stop)
+    {
         if stop.load(Ordering::SeqCst) {
             return Ok(start);
         }
@@ -97,12 +109,12 @@ pub fn answer_states(
             let command = choose(&state, place)?;
             actions
                 .publish(action_message(&state, &command, place.in_episode))
-                .map_err(|e| anyhow::anyhow!("publishing on {}: {e:?}", topics::ACTION))?;
+                .map_err(anyhow::Error::msg)?;
             answered += 1;
         }
     }
 
-    crate::wait_for_final_delivery(&actions, "the last action");
+    crate::wait_for_final_delivery(actions.dds(), "the last action");
     tracing::info!(
         "{who} answered {answered} of {total} steps; {}",
         refusal_summary(&feeds, &joiner)

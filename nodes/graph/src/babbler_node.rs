@@ -6,10 +6,16 @@ use causal_arm_node::RosArgs;
 use causal_arm_node::RosNode;
 
 use crate::answer::answer_states;
+use crate::intra::IntraPort;
 use crate::{RunParams, node_param_specs, stop_flag};
 
 /// Runs the babbler node until it answered every step of the run or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
+    run_composed(ros_args, None)
+}
+
+/// As [`run`], composed with other nodes of the graph in this process (`port`).
+pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::Result<()> {
     let specs = node_param_specs("causal_arm_babbler")?;
     let mut node = RosNode::new("causal_arm_babbler", &specs, ros_args)?;
     let run = RunParams::from_params(node.params(), "")?;
@@ -21,11 +27,18 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         0 => Babbler::new(&run.options, &ArmModel::embedded())?,
         _ => fast_forward(&run.options, start)?.1,
     };
-    answer_states("babbler", &mut node, &run, start, &stop, |state, place| {
-        if place.in_episode == 0 && place.step > 0 {
-            babbler.reset();
-        }
-        Ok(babbler.next(state))
-    })?;
+    answer_states(
+        "babbler",
+        (&mut node, port),
+        &run,
+        start,
+        &stop,
+        |state, place| {
+            if place.in_episode == 0 && place.step > 0 {
+                babbler.reset();
+            }
+            Ok(babbler.next(state))
+        },
+    )?;
     Ok(())
 }

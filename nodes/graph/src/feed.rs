@@ -7,6 +7,7 @@
 
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::Duration;
 
 use causal_arm_msgs::builtin_interfaces::msg::Time;
@@ -89,25 +90,44 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> TopicFeed<M, P> {
     }
 
     fn file(&self, joiner: &mut StepJoiner<P>, message: M) {
-        if let Err(problem) = message.well_formed() {
-            return self.count_unreadable(format!("malformed: {problem}"));
-        }
-        let stamp = ns_from_time((self.stamp)(&message));
-        let put = self.put;
-        if let Err(refusal) = joiner.insert(self.topic, stamp, |parts| put(parts, message)) {
-            let counts = joiner.counts();
-            if counts.stale + counts.duplicate <= LOGGED {
-                tracing::warn!("ignoring a sample: {refusal}");
-            }
+        if let Err(problem) = file_sample(self.topic, self.stamp, self.put, joiner, message) {
+            self.count_unreadable(problem);
         }
     }
 
     fn count_unreadable(&self, problem: impl std::fmt::Display) {
-        let n = self.unreadable.get() + 1;
-        self.unreadable.set(n);
-        if n <= LOGGED {
-            tracing::warn!("ignoring an unreadable {} sample: {problem}", self.topic);
+        count_unreadable(&self.unreadable, self.topic, problem);
+    }
+}
+
+/// Files a well-formed `message` of `topic` under its stamp; a malformed one is returned
+/// as the problem to count. What the joiner refuses (stale, duplicate) it counts itself.
+fn file_sample<M: WellFormed, P: StepParts>(
+    topic: &'static str,
+    stamp: fn(&M) -> &Time,
+    put: fn(&mut P, M) -> bool,
+    joiner: &mut StepJoiner<P>,
+    message: M,
+) -> Result<(), String> {
+    if let Err(problem) = message.well_formed() {
+        return Err(format!("malformed: {problem}"));
+    }
+    let stamp = ns_from_time(stamp(&message));
+    if let Err(refusal) = joiner.insert(topic, stamp, |parts| put(parts, message)) {
+        let counts = joiner.counts();
+        if counts.stale + counts.duplicate <= LOGGED {
+            tracing::warn!("ignoring a sample: {refusal}");
         }
+    }
+    Ok(())
+}
+
+/// Counts one sample of `topic` that could not be used; logs the first few.
+fn count_unreadable(count: &Cell<u64>, topic: &str, problem: impl std::fmt::Display) {
+    let n = count.get() + 1;
+    count.set(n);
+    if n <= LOGGED {
+        tracing::warn!("ignoring an unreadable {topic} sample: {problem}");
     }
 }
 
@@ -148,6 +168,83 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> Feed<P> for Topic
 
     fn screened(&self) -> QuarantineCounts {
         self.gate.borrow().counts()
+    }
+}
+
+/// A [`Feed`] from a node composed into the same process (see [`crate::intra`]): its
+/// publisher is known, so nothing is screened or decoded.
+pub struct LocalFeed<M, P> {
+    topic: &'static str,
+    receiver: Receiver<M>,
+    stamp: fn(&M) -> &Time,
+    put: fn(&mut P, M) -> bool,
+    malformed: Cell<u64>,
+}
+
+impl<M, P> LocalFeed<M, P> {
+    /// A feed of `topic`'s in-process link `receiver`.
+    pub fn new(
+        topic: &'static str,
+        receiver: Receiver<M>,
+        stamp: fn(&M) -> &Time,
+        put: fn(&mut P, M) -> bool,
+    ) -> Self {
+        Self {
+            topic,
+            receiver,
+            stamp,
+            put,
+            malformed: Cell::new(0),
+        }
+    }
+
+    fn file(&self, joiner: &mut StepJoiner<P>, message: M)
+    where
+        M: WellFormed,
+        P: StepParts,
+    {
+        if let Err(problem) = file_sample(self.topic, self.stamp, self.put, joiner, message) {
+            count_unreadable(&self.malformed, self.topic, problem);
+        }
+    }
+}
+
+impl<M: WellFormed, P: StepParts> Feed<P> for LocalFeed<M, P> {
+    fn topic(&self) -> &'static str {
+        self.topic
+    }
+
+    fn drain(&self, joiner: &mut StepJoiner<P>) -> usize {
+        let mut arrived = 0;
+        while let Ok(message) = self.receiver.try_recv() {
+            self.file(joiner, message);
+            arrived += 1;
+        }
+        arrived
+    }
+
+    /// A publisher that has stopped leaves an empty, closed link: that waits out
+    /// `timeout` too (the node's own timeout then says the run went quiet).
+    fn wait(&self, joiner: &mut StepJoiner<P>, timeout: Duration) -> bool {
+        match self.receiver.recv_timeout(timeout) {
+            Ok(message) => {
+                self.file(joiner, message);
+                true
+            }
+            Err(RecvTimeoutError::Timeout) => false,
+            Err(RecvTimeoutError::Disconnected) => {
+                std::thread::sleep(timeout);
+                false
+            }
+        }
+    }
+
+    fn unreadable(&self) -> u64 {
+        self.malformed.get()
+    }
+
+    fn screened(&self) -> QuarantineCounts {
+        QuarantineCounts::default()
     }
 }
 

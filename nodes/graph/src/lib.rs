@@ -15,8 +15,10 @@
 
 pub mod answer;
 pub mod babbler_node;
+pub mod compose;
 pub mod feed;
 pub mod flow;
+pub mod intra;
 pub mod parts;
 pub mod plan;
 pub mod reacher_node;

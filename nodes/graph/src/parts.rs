@@ -13,7 +13,8 @@ use causal_arm_node::RosNode;
 use causal_arm_protocol::{StepMessages, StepParts, WellFormed, fill, step_parts, topics};
 use ros2_client::QosProfile;
 
-use crate::feed::{Feed, TopicFeed};
+use crate::feed::{Feed, LocalFeed, TopicFeed};
+use crate::intra::IntraPort;
 use crate::screen::Screen;
 
 step_parts! {
@@ -99,60 +100,76 @@ macro_rules! state_slots {
 state_slots!(StateParts);
 state_slots!(RecordParts);
 
-/// A boxed feed of `topic` on `node`, screened by `screen`.
+/// Where a node's feeds come from: DDS, screened by the node's [`Screen`], or in process
+/// for the topics a node composed with it publishes (`port`, see [`crate::intra`]).
+pub struct FeedSource<'a, 'p> {
+    /// The subscribing node.
+    pub node: &'a mut RosNode,
+    /// Its screen of DDS writers.
+    pub screen: &'a Rc<Screen>,
+    /// Its in-process links, when composed.
+    pub port: Option<IntraPort<'p>>,
+}
+
+/// A boxed feed of `topic` for `source`'s node: in process if a composed node publishes
+/// it, else a DDS subscription with `qos`, screened.
 pub fn feed<M, P>(
-    (node, screen): (&mut RosNode, &Rc<Screen>),
+    source: &mut FeedSource<'_, '_>,
     topic: &'static str,
     qos: &QosProfile,
     stamp: fn(&M) -> &Time,
     put: fn(&mut P, M) -> bool,
 ) -> anyhow::Result<Box<dyn Feed<P>>>
 where
-    M: RosMessage + WellFormed + 'static,
+    M: RosMessage + WellFormed + Send + 'static,
     P: StepParts + 'static,
 {
-    let subscription = node.subscription::<M>(topic, qos.clone())?;
-    let feed = TopicFeed::new(topic, subscription, stamp, put, screen.clone())?;
+    if let Some(port) = source.port
+        && let Some(receiver) = port.receiver::<M>(topic)?
+    {
+        return Ok(Box::new(LocalFeed::new(topic, receiver, stamp, put)));
+    }
+    let subscription = source.node.subscription::<M>(topic, qos.clone())?;
+    let feed = TopicFeed::new(topic, subscription, stamp, put, source.screen.clone())?;
     Ok(Box::new(feed))
 }
 
 /// Feeds of the five state topics, in the graph's order.
 pub fn state_feeds<P: StepParts + StateSlots + 'static>(
-    node: &mut RosNode,
-    screen: &Rc<Screen>,
+    source: &mut FeedSource<'_, '_>,
     qos: &QosProfile,
 ) -> anyhow::Result<Vec<Box<dyn Feed<P>>>> {
     Ok(vec![
         feed(
-            (node, screen),
+            source,
             topics::JOINT_STATES,
             qos,
             |m: &JointState| &m.header.stamp,
             |p: &mut P, m| fill(p.joint_states(), m),
         )?,
         feed(
-            (node, screen),
+            source,
             topics::EF_POSE,
             qos,
             |m: &PoseStamped| &m.header.stamp,
             |p: &mut P, m| fill(p.ef_pose(), m),
         )?,
         feed(
-            (node, screen),
+            source,
             topics::OBJECT_POSE,
             qos,
             |m: &PoseStamped| &m.header.stamp,
             |p: &mut P, m| fill(p.object_pose(), m),
         )?,
         feed(
-            (node, screen),
+            source,
             topics::OBJECT_COLOR,
             qos,
             |m: &ObjectColor| &m.header.stamp,
             |p: &mut P, m| fill(p.object_color(), m),
         )?,
         feed(
-            (node, screen),
+            source,
             topics::MAGNET_STATE,
             qos,
             |m: &MagnetState| &m.header.stamp,
@@ -163,8 +180,7 @@ pub fn state_feeds<P: StepParts + StateSlots + 'static>(
 
 /// Feeds of every topic the recorder writes per step.
 pub fn record_feeds(
-    node: &mut RosNode,
-    screen: &Rc<Screen>,
+    source: &mut FeedSource<'_, '_>,
     qos: &QosProfile,
 ) -> anyhow::Result<Vec<Box<dyn Feed<RecordParts>>>> {
     /// The stamp of a `/tf` message: its first transform's (an empty one files under 0,
@@ -173,23 +189,23 @@ pub fn record_feeds(
         const ZERO: Time = Time { sec: 0, nanosec: 0 };
         m.transforms.first().map_or(&ZERO, |t| &t.header.stamp)
     }
-    let mut feeds = state_feeds(node, screen, qos)?;
+    let mut feeds = state_feeds(source, qos)?;
     feeds.push(feed(
-        (node, screen),
+        source,
         topics::CLOCK,
         qos,
         |m: &Clock| &m.clock,
         |p: &mut RecordParts, m| fill(&mut p.clock, m),
     )?);
     feeds.push(feed(
-        (node, screen),
+        source,
         topics::TF,
         qos,
         tf_stamp,
         |p: &mut RecordParts, m| fill(&mut p.tf, m),
     )?);
     feeds.push(feed(
-        (node, screen),
+        source,
         topics::ACTION,
         qos,
         |m: &Action| &m.header.stamp,

@@ -84,7 +84,7 @@ fn reach(
     let sigma = run.options.exp1.sigma;
     let mut controller = controller(node, &model, layout, sigma, stop)?;
     let mut episodes: Vec<Episode> = Vec::with_capacity(targets.len());
-    answer_states("reacher", node, run, 0, stop, |state, place| {
+    answer_states("reacher", (node, None), run, 0, stop, |state, place| {
         let target = &targets[place.episode as usize];
         if place.in_episode == 0 {
             episodes.push(Episode::start(target, state));
@@ -151,7 +151,7 @@ fn place(
     let mut controller = PlaceController::new(mpc, scene);
     let mut trials: Vec<PlaceTrial> = Vec::with_capacity(episodes);
     let mut magnet = 0;
-    answer_states("reacher", node, run, 0, stop, |state, place| {
+    answer_states("reacher", (node, None), run, 0, stop, |state, place| {
         let spot = &spots[place.episode as usize];
         if place.in_episode == 0 {
             controller.reset();

@@ -16,26 +16,26 @@ use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::{LatchedMessages, StepJoiner, time_from_ns, topics};
-use ros2_client::{Publisher, Subscription};
 
 use crate::feed::{drain_or_wait, refusal_summary};
-use crate::parts::{RecordParts, record_feeds};
+use crate::intra::{Inlet, IntraPort, Outlet};
+use crate::parts::{FeedSource, RecordParts, record_feeds};
 use crate::screen::Screen;
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag};
 
 /// The run's latched topics: the bag gets them, together, before its first step.
 struct LatchedFeed {
-    description: Subscription<RosString>,
-    tf_static: Subscription<TFMessage>,
+    description: Inlet<RosString>,
+    tf_static: Inlet<TFMessage>,
     got_description: Option<RosString>,
     got_tf_static: Option<TFMessage>,
 }
 
 impl LatchedFeed {
-    fn new(node: &mut RosNode) -> anyhow::Result<Self> {
+    fn new(node: &mut RosNode, port: Option<IntraPort<'_>>) -> anyhow::Result<Self> {
         Ok(Self {
-            description: node.subscription(topics::ROBOT_DESCRIPTION, qos::latched())?,
-            tf_static: node.subscription(topics::TF_STATIC, qos::latched())?,
+            description: Inlet::open(node, port, topics::ROBOT_DESCRIPTION, qos::latched())?,
+            tf_static: Inlet::open(node, port, topics::TF_STATIC, qos::latched())?,
             got_description: None,
             got_tf_static: None,
         })
@@ -43,10 +43,10 @@ impl LatchedFeed {
 
     /// Both messages once both have arrived (each is taken as it comes).
     fn take(&mut self) -> Option<LatchedMessages> {
-        if let Ok(Some((d, _))) = self.description.take() {
+        if let Some(d) = self.description.try_take() {
             self.got_description = Some(d);
         }
-        if let Ok(Some((t, _))) = self.tf_static.take() {
+        if let Some(t) = self.tf_static.try_take() {
             self.got_tf_static = Some(t);
         }
         match (&self.got_description, &self.got_tf_static) {
@@ -69,7 +69,7 @@ fn open_sink(output: &Path, overwrite: bool, run: &RunParams) -> anyhow::Result<
 }
 
 /// Tells the simulator that every step up to `landed` is safe in the bag, once per stamp.
-fn acknowledge(ack: &Publisher<Clock>, acked: &mut Option<u64>, landed: Option<u64>) {
+fn acknowledge(ack: &Outlet<Clock>, acked: &mut Option<u64>, landed: Option<u64>) {
     if let Some(stamp) = landed
         && *acked != Some(stamp)
     {
@@ -88,6 +88,11 @@ const GATHER: Duration = Duration::from_millis(1);
 
 /// Runs the recorder node until every step is written or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
+    run_composed(ros_args, None)
+}
+
+/// As [`run`], composed with other nodes of the graph in this process (`port`).
+pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::Result<()> {
     let specs = node_param_specs("causal_arm_recorder")?;
     let mut node = RosNode::new("causal_arm_recorder", &specs, ros_args)?;
     let output = node.params().string("output").to_owned();
@@ -99,9 +104,15 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let stop = stop_flag();
     let screen = Rc::new(Screen::new(&mut node)?);
-    let feeds = record_feeds(&mut node, &screen, &qos::recorded())?;
-    let mut latched = LatchedFeed::new(&mut node)?;
-    let ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
+    let mut source = FeedSource {
+        node: &mut node,
+        screen: &screen,
+        port,
+    };
+    let feeds = record_feeds(&mut source, &qos::recorded())?;
+    let mut latched = LatchedFeed::new(&mut node, port)?;
+    let dds_ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
+    let ack = Outlet::new(dds_ack, ACK_TOPIC, port)?;
 
     let start = run.options.start_step;
     let mut sink = open_sink(
@@ -167,7 +178,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     // Every step has landed now: acknowledge the last one, and let reliable delivery reach
     // the simulator (it waits for this very acknowledgement before it exits).
     acknowledge(&ack, &mut acked, last_written);
-    crate::wait_for_final_delivery(&ack, "the last acknowledgement");
+    crate::wait_for_final_delivery(ack.dds(), "the last acknowledgement");
     tracing::info!(
         "wrote {} ({written} steps of {total})",
         summary.dir.display()

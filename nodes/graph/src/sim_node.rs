@@ -7,6 +7,7 @@ use std::collections::VecDeque;
 use std::rc::Rc;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
@@ -22,38 +23,37 @@ use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_msgs::visualization_msgs::msg::MarkerArray;
 use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::{
-    Command, LatchedMessages, Scene, SimState, StepMessages, command_of, markers_key, ns_from_time,
-    scene_markers, topics,
+    Command, LatchedMessages, QuarantineCounts, Scene, SimState, StepMessages, command_of,
+    markers_key, ns_from_time, scene_markers, topics,
 };
-use ros2_client::{Publisher, Subscription};
+use ros2_client::Subscription;
 
 use crate::feed::LOGGED;
 use crate::flow::AckWindow;
+use crate::intra::{IntraPort, Outlet};
 use crate::screen::{Gate, Screen};
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag, take_next};
 
-fn publish<M: causal_arm_msgs::RosMessage>(
-    p: &Publisher<M>,
+fn publish<M: causal_arm_msgs::RosMessage + Clone>(
+    p: &Outlet<M>,
     msg: M,
-    topic: &str,
 ) -> Result<(), GenerateError> {
-    p.publish(msg)
-        .map_err(|e| GenerateError::Transport(format!("publishing on {topic}: {e:?}")))
+    p.publish(msg).map_err(GenerateError::Transport)
 }
 
 /// The state topics as a [`StepSink`], paced by the recorder's acknowledgements.
 struct DdsStatePublisher {
-    joint_states: Publisher<JointState>,
-    ef_pose: Publisher<PoseStamped>,
-    object_pose: Publisher<PoseStamped>,
-    object_color: Publisher<ObjectColor>,
-    magnet: Publisher<MagnetState>,
-    clock: Publisher<Clock>,
-    tf: Publisher<TFMessage>,
-    description: Publisher<RosString>,
-    tf_static: Publisher<TFMessage>,
+    joint_states: Outlet<JointState>,
+    ef_pose: Outlet<PoseStamped>,
+    object_pose: Outlet<PoseStamped>,
+    object_color: Outlet<ObjectColor>,
+    magnet: Outlet<MagnetState>,
+    clock: Outlet<Clock>,
+    tf: Outlet<TFMessage>,
+    description: Outlet<RosString>,
+    tf_static: Outlet<TFMessage>,
     /// Published when what they show changes (latched); bags hold them every step.
-    markers: Publisher<MarkerArray>,
+    markers: Outlet<MarkerArray>,
     scene: Scene,
     shown: Option<([u32; 3], bool, bool)>,
     /// `Some` when the recorder paces the run.
@@ -63,7 +63,8 @@ struct DdsStatePublisher {
 }
 
 impl DdsStatePublisher {
-    /// Waits for the graph file's readers of each state topic; `Ok(false)` when stopped.
+    /// Waits for the graph file's readers of each state topic (those composed with this
+    /// node take it in process); `Ok(false)` when stopped.
     fn wait_for_readers(
         &self,
         node: &mut RosNode,
@@ -76,9 +77,16 @@ impl DdsStatePublisher {
         // `/tf` one.
         macro_rules! wait {
             ($publisher:expr, $topic:expr) => {
-                let needed = crate::expected_readers($topic, with_recorder)?;
+                let needed = crate::expected_readers($topic, with_recorder)?
+                    .saturating_sub($publisher.local_subscribers());
                 if needed > 0
-                    && !node.wait_for_subscribers($publisher, needed, timeout, Duration::ZERO, stop)
+                    && !node.wait_for_subscribers(
+                        $publisher.dds(),
+                        needed,
+                        timeout,
+                        Duration::ZERO,
+                        stop,
+                    )
                 {
                     if stop.load(Ordering::SeqCst) {
                         return Ok(false);
@@ -105,8 +113,9 @@ impl DdsStatePublisher {
         let deadline = Instant::now() + crate::SETTLE;
         macro_rules! confirm {
             ($publisher:expr, $topic:expr) => {
-                let needed = crate::expected_readers($topic, with_recorder)?;
-                if !RosNode::confirm_subscribers($publisher, needed, deadline) {
+                let needed = crate::expected_readers($topic, with_recorder)?
+                    .saturating_sub($publisher.local_subscribers());
+                if !RosNode::confirm_subscribers($publisher.dds(), needed, deadline) {
                     tracing::debug!(
                         "not every reader of {} confirmed within {:?}",
                         $topic,
@@ -122,30 +131,41 @@ impl DdsStatePublisher {
     fn new(
         node: &mut RosNode,
         paced_by: Option<AckWindow>,
-        screen: &Rc<Screen>,
+        (screen, port): (&Rc<Screen>, Option<IntraPort<'_>>),
         scene: Scene,
     ) -> anyhow::Result<Self> {
         let recorded = qos::recorded();
         let acks = match paced_by {
             Some(window) => Some(AckFeed {
-                acks: node.subscription::<Clock>(ACK_TOPIC, qos::default_reliable())?,
+                source: match port.map(|p| p.receiver::<Clock>(ACK_TOPIC)).transpose()? {
+                    Some(Some(local)) => AckSource::Local(local),
+                    _ => AckSource::Dds(Screened::new(
+                        node,
+                        ACK_TOPIC,
+                        qos::default_reliable(),
+                        screen,
+                    )?),
+                },
                 window,
-                gate: Gate::new(ACK_TOPIC, Rc::clone(screen))?,
-                screen: Rc::clone(screen),
             }),
             None => None,
         };
+        macro_rules! outlet {
+            ($topic:expr, $qos:expr) => {
+                Outlet::new(node.publisher($topic, $qos)?, $topic, port)?
+            };
+        }
         Ok(Self {
-            joint_states: node.publisher(topics::JOINT_STATES, recorded.clone())?,
-            ef_pose: node.publisher(topics::EF_POSE, recorded.clone())?,
-            object_pose: node.publisher(topics::OBJECT_POSE, recorded.clone())?,
-            object_color: node.publisher(topics::OBJECT_COLOR, recorded.clone())?,
-            magnet: node.publisher(topics::MAGNET_STATE, recorded.clone())?,
-            clock: node.publisher(topics::CLOCK, recorded.clone())?,
-            tf: node.publisher(topics::TF, recorded)?,
-            description: node.publisher(topics::ROBOT_DESCRIPTION, qos::latched())?,
-            tf_static: node.publisher(topics::TF_STATIC, qos::latched())?,
-            markers: node.publisher(topics::SCENE_MARKERS, qos::latched())?,
+            joint_states: outlet!(topics::JOINT_STATES, recorded.clone()),
+            ef_pose: outlet!(topics::EF_POSE, recorded.clone()),
+            object_pose: outlet!(topics::OBJECT_POSE, recorded.clone()),
+            object_color: outlet!(topics::OBJECT_COLOR, recorded.clone()),
+            magnet: outlet!(topics::MAGNET_STATE, recorded.clone()),
+            clock: outlet!(topics::CLOCK, recorded.clone()),
+            tf: outlet!(topics::TF, recorded),
+            description: outlet!(topics::ROBOT_DESCRIPTION, qos::latched()),
+            tf_static: outlet!(topics::TF_STATIC, qos::latched()),
+            markers: outlet!(topics::SCENE_MARKERS, qos::latched()),
             scene,
             shown: None,
             acks,
@@ -192,33 +212,82 @@ impl DdsStatePublisher {
     }
 }
 
-/// The recorder's acknowledgements, taken only from the recorder's writers (screened as
-/// actions are: a forged acknowledgement would let the simulator run ahead of the bag).
+/// The recorder's acknowledgements, paced into the window.
 struct AckFeed {
-    acks: Subscription<Clock>,
+    source: AckSource,
     window: AckWindow,
+}
+
+/// Where acknowledgements come from: over DDS only from the recorder's writers (screened
+/// as actions are: a forged acknowledgement would let the simulator run ahead of the
+/// bag), or in process from the recorder composed with this node.
+enum AckSource {
+    Dds(Box<Screened<Clock, u64>>),
+    Local(Receiver<Clock>),
+}
+
+/// A DDS subscription whose samples are admitted only from the topic's trusted writers.
+struct Screened<M, T> {
+    subscription: Subscription<M>,
     screen: Rc<Screen>,
-    gate: Gate<u64>,
+    gate: Gate<T>,
+}
+
+impl<M: causal_arm_msgs::RosMessage, T> Screened<M, T> {
+    fn new(
+        node: &mut RosNode,
+        topic: &'static str,
+        qos: ros2_client::QosProfile,
+        screen: &Rc<Screen>,
+    ) -> anyhow::Result<Box<Self>> {
+        Ok(Box::new(Self {
+            subscription: node.subscription::<M>(topic, qos)?,
+            gate: Gate::new(topic, Rc::clone(screen))?,
+            screen: Rc::clone(screen),
+        }))
+    }
 }
 
 impl AckFeed {
     /// Feeds the window every acknowledgement the screen admits. Called in the window's
     /// wait loop: reads the graph's announcements only when there is something to screen.
     fn take(&mut self) {
-        let arrived: Vec<_> = std::iter::from_fn(|| self.acks.take().ok().flatten()).collect();
-        if arrived.is_empty() && self.gate.held() == 0 {
-            return;
-        }
-        self.screen.refresh();
-        let mut stamps = self.gate.release();
-        for (ack, info) in arrived {
-            let writer = info.publisher_gid().to_bytes16();
-            stamps.extend(self.gate.admit(writer, ns_from_time(&ack.clock)));
-        }
+        let stamps = match &mut self.source {
+            AckSource::Local(receiver) => receiver
+                .try_iter()
+                .map(|a| ns_from_time(&a.clock))
+                .collect(),
+            AckSource::Dds(screened) => {
+                let Screened {
+                    subscription: acks,
+                    screen,
+                    gate,
+                } = &mut **screened;
+                let arrived: Vec<_> = std::iter::from_fn(|| acks.take().ok().flatten()).collect();
+                if arrived.is_empty() && gate.held() == 0 {
+                    return;
+                }
+                screen.refresh();
+                let mut stamps = gate.release();
+                for (ack, info) in arrived {
+                    let writer = info.publisher_gid().to_bytes16();
+                    stamps.extend(gate.admit(writer, ns_from_time(&ack.clock)));
+                }
+                stamps
+            }
+        };
         for stamp in stamps {
             if !self.window.ack(stamp) && self.window.refused() <= LOGGED {
                 tracing::warn!("ignoring an acknowledgement of step {stamp} ns, not yet published");
             }
+        }
+    }
+
+    /// Acknowledgements kept out for their writer (none in process).
+    fn screened(&self) -> QuarantineCounts {
+        match &self.source {
+            AckSource::Dds(screened) => screened.gate.counts(),
+            AckSource::Local(_) => QuarantineCounts::default(),
         }
     }
 }
@@ -226,8 +295,8 @@ impl AckFeed {
 impl StepSink for DdsStatePublisher {
     fn latched(&mut self, m: &LatchedMessages) -> Result<(), GenerateError> {
         let description = m.robot_description.clone();
-        publish(&self.description, description, topics::ROBOT_DESCRIPTION)?;
-        publish(&self.tf_static, m.tf_static.clone(), topics::TF_STATIC)
+        publish(&self.description, description)?;
+        publish(&self.tf_static, m.tf_static.clone())
     }
 
     fn state(&mut self, stamp_ns: u64, m: StepMessages) -> Result<(), GenerateError> {
@@ -235,16 +304,16 @@ impl StepSink for DdsStatePublisher {
         let shows = markers_key(&m);
         if self.shown != Some(shows) {
             let markers = scene_markers(&m, &self.scene);
-            publish(&self.markers, markers, topics::SCENE_MARKERS)?;
+            publish(&self.markers, markers)?;
             self.shown = Some(shows);
         }
-        publish(&self.joint_states, m.joint_states, topics::JOINT_STATES)?;
-        publish(&self.ef_pose, m.ef_pose, topics::EF_POSE)?;
-        publish(&self.object_pose, m.object_pose, topics::OBJECT_POSE)?;
-        publish(&self.object_color, m.object_color, topics::OBJECT_COLOR)?;
-        publish(&self.magnet, m.magnet, topics::MAGNET_STATE)?;
-        publish(&self.clock, m.clock, topics::CLOCK)?;
-        publish(&self.tf, m.tf, topics::TF)?;
+        publish(&self.joint_states, m.joint_states)?;
+        publish(&self.ef_pose, m.ef_pose)?;
+        publish(&self.object_pose, m.object_pose)?;
+        publish(&self.object_color, m.object_color)?;
+        publish(&self.magnet, m.magnet)?;
+        publish(&self.clock, m.clock)?;
+        publish(&self.tf, m.tf)?;
         if let Some(feed) = &mut self.acks {
             feed.window.published(stamp_ns);
         }
@@ -262,32 +331,55 @@ impl StepSink for DdsStatePublisher {
 /// writers are kept out (see [`Screen`]); answers to other stamps and malformed ones are
 /// counted and skipped.
 struct DdsCommands {
-    actions: Subscription<Action>,
+    source: ActionSource,
     timeout: Duration,
     stop: Arc<AtomicBool>,
     ignored: u64,
-    screen: Rc<Screen>,
-    gate: Gate<Action>,
     /// Actions admitted by the screen, not looked at yet.
     admitted: VecDeque<Action>,
 }
 
+/// Where actions come from: over DDS, screened, or in process from the babbler composed
+/// with this node.
+enum ActionSource {
+    Dds(Box<Screened<Action, Action>>),
+    Local(Receiver<Action>),
+}
+
 impl DdsCommands {
     fn new(
-        node: &mut RosNode,
+        (node, port): (&mut RosNode, Option<IntraPort<'_>>),
         screen: Rc<Screen>,
         timeout: Duration,
         stop: Arc<AtomicBool>,
     ) -> anyhow::Result<Self> {
+        let source = match port
+            .map(|p| p.receiver::<Action>(topics::ACTION))
+            .transpose()?
+        {
+            Some(Some(local)) => ActionSource::Local(local),
+            _ => ActionSource::Dds(Screened::new(
+                node,
+                topics::ACTION,
+                qos::recorded(),
+                &screen,
+            )?),
+        };
         Ok(Self {
-            actions: node.subscription::<Action>(topics::ACTION, qos::recorded())?,
+            source,
             timeout,
             stop,
             ignored: 0,
-            gate: Gate::new(topics::ACTION, Rc::clone(&screen))?,
-            screen,
             admitted: VecDeque::new(),
         })
+    }
+
+    /// Actions kept out for their writer (none in process).
+    fn screened(&self) -> QuarantineCounts {
+        match &self.source {
+            ActionSource::Dds(screened) => screened.gate.counts(),
+            ActionSource::Local(_) => QuarantineCounts::default(),
+        }
     }
 
     /// Logs the first few skipped actions; the rest are only counted.
@@ -300,15 +392,28 @@ impl DdsCommands {
 
     /// Waits up to 100 ms for an action; queues what the screen admits.
     fn receive(&mut self) {
-        let taken = take_next(&self.actions, Duration::from_millis(100));
-        self.screen.refresh();
-        let released = self.gate.release();
-        self.admitted.extend(released);
+        const WAIT: Duration = Duration::from_millis(100);
+        let (actions, screen, gate) = match &mut self.source {
+            ActionSource::Local(receiver) => {
+                self.admitted.extend(receiver.recv_timeout(WAIT).ok());
+                return;
+            }
+            ActionSource::Dds(screened) => {
+                let Screened {
+                    subscription,
+                    screen,
+                    gate,
+                } = &mut **screened;
+                (subscription, screen, gate)
+            }
+        };
+        let taken = take_next(actions, WAIT);
+        screen.refresh();
+        self.admitted.extend(gate.release());
         match taken {
             Some(Ok((action, info))) => {
                 let writer = info.publisher_gid().to_bytes16();
-                let admitted = self.gate.admit(writer, action);
-                self.admitted.extend(admitted);
+                self.admitted.extend(gate.admit(writer, action));
             }
             Some(Err(e)) => self.skip(format_args!("undecodable: {e:#}")),
             None => {}
@@ -359,6 +464,11 @@ impl CommandSource for DdsCommands {
 
 /// Runs the simulator node until the run is complete or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
+    run_composed(ros_args, None)
+}
+
+/// As [`run`], composed with other nodes of the graph in this process (`port`).
+pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::Result<()> {
     let specs = node_param_specs("causal_arm_sim")?;
     let mut node = RosNode::new("causal_arm_sim", &specs, ros_args)?;
     let run = RunParams::from_params(node.params(), "")?;
@@ -379,8 +489,9 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     });
     let screen = Rc::new(Screen::new(&mut node)?);
     let scene = run.options.sim.scene();
-    let mut states = DdsStatePublisher::new(&mut node, pacing, &screen, scene)?;
-    let mut commands = DdsCommands::new(&mut node, Rc::clone(&screen), timeout, stop.clone())?;
+    let mut states = DdsStatePublisher::new(&mut node, pacing, (&screen, port), scene)?;
+    let mut commands =
+        DdsCommands::new((&mut node, port), Rc::clone(&screen), timeout, stop.clone())?;
     let (mut sim, _) = fast_forward(&run.options, start)?;
     states.latched(&sim.latched_messages())?;
 
@@ -412,11 +523,11 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
         Err(e) => return Err(e.into()),
     }
     states.wait_until_recorded(timeout);
-    let screened = commands.gate.counts();
+    let screened = commands.screened();
     let acks = states
         .acks
         .as_ref()
-        .map(|feed| feed.gate.counts())
+        .map(AckFeed::screened)
         .unwrap_or_default();
     tracing::info!(
         "simulator done at sim time {:.3} s; ignored {} actions of other nodes' writers, {} of unannounced writers and {} stray or malformed actions; {} acknowledgements of other nodes' writers and {} of unannounced writers",

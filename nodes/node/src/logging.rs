@@ -9,6 +9,7 @@ use std::cell::Cell;
 use std::fmt::Write as _;
 use std::io::IsTerminal as _;
 use std::sync::{Mutex, OnceLock};
+use std::thread::ThreadId;
 
 use ros2_client::{NodeLoggingHandle, RosoutRaw, builtin_interfaces::Time, ros2::LogLevel};
 use tracing::field::{Field, Visit};
@@ -16,7 +17,9 @@ use tracing::{Event, Level, Subscriber};
 use tracing_subscriber::layer::{Context, SubscriberExt};
 use tracing_subscriber::{EnvFilter, Layer};
 
-static ROSOUT: OnceLock<Mutex<Option<NodeLoggingHandle>>> = OnceLock::new();
+/// The rosout writer of each node in the process, with the thread it runs on: several
+/// nodes composed in one process each log as themselves (see [`attach_rosout`]).
+static ROSOUT: OnceLock<Mutex<Vec<(ThreadId, NodeLoggingHandle)>>> = OnceLock::new();
 
 thread_local! {
     static FORWARDING: Cell<bool> = const { Cell::new(false) };
@@ -101,20 +104,26 @@ impl log::Log for DdsLogBridge {
     }
 }
 
-/// Starts forwarding events to `/rosout` through `handle` (the node's rosout writer).
+/// Starts forwarding the calling thread's events to `/rosout` through `handle` (the rosout
+/// writer of the node this thread runs). Events of threads without a node of their own
+/// (DDS, the runtime) go through the first node's.
 pub fn attach_rosout(handle: NodeLoggingHandle) {
-    let slot = ROSOUT.get_or_init(|| Mutex::new(None));
-    if let Ok(mut guard) = slot.lock() {
-        *guard = Some(handle);
+    let slot = ROSOUT.get_or_init(|| Mutex::new(Vec::new()));
+    if let Ok(mut nodes) = slot.lock() {
+        let thread = std::thread::current().id();
+        nodes.retain(|(t, _)| *t != thread);
+        nodes.push((thread, handle));
     }
 }
 
-/// Stops forwarding (called when the node shuts down, before its writer goes away).
+/// Stops forwarding the calling thread's node (called when the node shuts down, before
+/// its writer goes away).
 pub fn detach_rosout() {
     if let Some(slot) = ROSOUT.get()
-        && let Ok(mut guard) = slot.lock()
+        && let Ok(mut nodes) = slot.lock()
     {
-        *guard = None;
+        let thread = std::thread::current().id();
+        nodes.retain(|(t, _)| *t != thread);
     }
 }
 
@@ -138,8 +147,9 @@ impl<S: Subscriber> Layer<S> for RosoutLayer {
         }
         let mut message = MessageText::default();
         event.record(&mut message);
-        if let Ok(guard) = slot.lock()
-            && let Some(handle) = guard.as_ref()
+        let thread = std::thread::current().id();
+        if let Ok(nodes) = slot.lock()
+            && let Some((_, handle)) = (nodes.iter().find(|(t, _)| *t == thread)).or(nodes.first())
         {
             let level = match *meta.level() {
                 Level::ERROR => LogLevel::Error,

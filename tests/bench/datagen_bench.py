@@ -155,14 +155,14 @@ def main():
     print(f"PyBullet exp1 loop: {first:.0f} steps/s first, {last:.0f} last; the reference is their mean")
     rows[0] = (rows[0][0], (first + last) / 2)
     ref = rows[0][1]
-    print(f"\n{'run':<52} {'steps/s':>10} {'vs PyBullet':>12}")
+    print(f"\n{'run':<56} {'steps/s':>10} {'vs PyBullet':>12}")
     for name, rate in rows:
-        print(f"{name:<52} {rate:>10.0f} {rate / ref:>11.2f}x")
+        print(f"{name:<56} {rate:>10.0f} {rate / ref:>11.2f}x")
     if graphs:
         print("\nThe DDS graphs while stepping (start-up and discovery left out, as the PyBullet loop's are):")
-        print(f"{'run':<52} {'steps/s':>10} {'vs PyBullet':>12} {'steps lost':>11}")
+        print(f"{'run':<56} {'steps/s':>10} {'vs PyBullet':>12} {'steps lost':>11}")
         for name, (_, stepping, lost) in graphs:
-            print(f"{name:<52} {stepping:>10.0f} {stepping / ref:>11.2f}x {lost:>11}")
+            print(f"{name:<56} {stepping:>10.0f} {stepping / ref:>11.2f}x {lost:>11}")
     by_name = dict(rows)
     for experiment in ["exp1", "exp2"]:
         one = by_name[f"causal-arm generate {experiment} (in-process, writes bag)"]

@@ -1,6 +1,7 @@
 //! `causal-arm launch`: start the simulator, babbler and recorder nodes as separate
-//! processes (the same graph `ros2 launch` starts), follow the recorder's progress over
-//! DDS, stop everything cleanly and say where the bag is.
+//! processes (the same graph `ros2 launch` starts), or with `--composed` as three nodes of
+//! this process, follow the recorder's progress over DDS, stop everything cleanly and say
+//! where the bag is.
 
 use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};

@@ -1,6 +1,7 @@
 //! The data-generation graph as ROS 2 nodes: `causal_arm_sim`, `causal_arm_babbler` and
-//! `causal_arm_recorder`, each its own process, and `causal_arm_reacher`, which stands in
-//! for the babbler when `causal-arm reach` drives the arm to targets.
+//! `causal_arm_recorder`, each its own process or the three composed in one ([`compose`]),
+//! and `causal_arm_reacher`, which stands in for the babbler when `causal-arm reach` drives
+//! the arm to targets.
 //!
 //! Lock-step protocol (so nothing is lost and a seed reproduces `causal-arm generate`):
 //! 1. the simulator publishes the state of step k on all state topics, one stamp;

@@ -187,11 +187,14 @@ def _launch_or_explain_the_stall(causal_arm_bin, args, env, timeout):
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
+@pytest.mark.parametrize("composed", [False, True], ids=["processes", "composed"])
 def test_secured_graph_records_a_complete_bag_equal_to_generate(run_cli, causal_arm_bin, keystore, tmp_path,
-                                                               private_netns):
+                                                               private_netns, composed):
+    """Also with the nodes composed in one process: each still joins with the enclave."""
     env = _secured_env(keystore, enclave=None)
     r = _launch_or_explain_the_stall(causal_arm_bin, ["exp1", "--steps", STEPS, "--seed", "4", "--out",
-                                                      tmp_path / "secured", "--ros-args", "--enclave", ENCLAVE],
+                                                      tmp_path / "secured"] + ["--composed"] * composed
+                                     + ["--ros-args", "--enclave", ENCLAVE],
                                      env, timeout=120)
     assert r.returncode == 0, r.stderr[-3000:]
     assert f"{STEPS} of {STEPS} steps" in r.stdout, r.stdout

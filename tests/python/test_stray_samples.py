@@ -153,3 +153,61 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
     assert a.keys() == b.keys()
     for topic in a:
         assert a[topic] == b[topic], f"{topic} differs from the in-process run"
+
+
+def test_a_composed_graph_takes_its_own_topics_from_its_own_nodes_only(run_cli, causal_arm_bin, tmp_path,
+                                                                        private_netns):
+    """Composed in one process, the nodes hand each other the step's topics in process and
+    read none of them from DDS: even well-formed samples of the very step being run, from a
+    participant announcing the graph's own node names (which a graph of processes can only
+    keep out with SROS2), and acknowledgements of steps far ahead never reach the bag or the
+    simulator's window. The bag equals the in-process run of the seed."""
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+    from ros_idl import Action, Clock, JointState, ros_default_qos
+
+    steps, domain = 6000, 29
+    namesake = DomainParticipant(domain)
+    actions = DataWriter(namesake, Topic(namesake, "rt/babbler/action", Action), qos=ros_default_qos(100))
+    states = DataWriter(namesake, Topic(namesake, "rt/joint_states", JointState), qos=ros_default_qos(100))
+    acks = DataWriter(namesake, Topic(namesake, "rt/recorder/ack", Clock), qos=ros_default_qos(100))
+    announcement = announce(namesake, {"causal_arm_babbler": [actions], "causal_arm_sim": [states],
+                                       "causal_arm_recorder": [acks]})
+    # The graph's states, read on a participant of their own (the namesake's reader would
+    # also get the namesake's forged ones).
+    watcher = DomainParticipant(domain)
+    state_reader = DataReader(watcher, Topic(watcher, "rt/joint_states", JointState), qos=ros_default_qos(100))
+    env = {**os.environ, "ROS_DOMAIN_ID": str(domain), "RUST_LOG": "warn"}
+    dds = tmp_path / "composed"
+    proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", str(steps), "--seed", "4",
+                             "--composed", "--out", str(dds)], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    sent, latest, deadline = 0, 0, time.monotonic() + 120
+    while proc.poll() is None and time.monotonic() < deadline:
+        for m in state_reader.take(N=100):
+            if isinstance(m, JointState):
+                latest = max(latest, round((m.header.stamp.sec * 1e9 + m.header.stamp.nanosec) / STEP_NS))
+        # Duplicates of the steps just published and the next ones, with other values.
+        for k in range(latest, latest + 8):
+            (dup_actions, dup_states) = strays(k)[1]
+            for a in dup_actions:
+                actions.write(a)
+            for s in dup_states:
+                states.write(s)
+            acks.write(Clock(clock=stamp_of(k + 10_000)))
+            sent += 3
+        time.sleep(0.002)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert announcement is not None
+    assert latest > 0 and sent > 100, (latest, sent)
+    assert proc.returncode == 0, stderr[-3000:]
+    assert f"({steps} of {steps} steps by nodes composed in one process" in stdout, stdout
+    local = tmp_path / "local"
+    r = run_cli("generate", "exp1", "--steps", str(steps), "--seed", "4", "--out", local)
+    assert r.returncode == 0, r.stderr
+    a, b = _canonical(dds), _canonical(local)
+    assert a.keys() == b.keys()
+    for topic in a:
+        assert a[topic] == b[topic], f"{topic} differs from the in-process run"

@@ -6,6 +6,7 @@
 use std::os::unix::process::CommandExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -16,6 +17,7 @@ use causal_arm_protocol::ns_from_time;
 
 use causal_arm_datagen::GenerateOptions;
 use causal_arm_graph::RunParams;
+use causal_arm_graph::screen::{Screen, Screened};
 use causal_arm_protocol::graph::graph;
 
 use crate::generate_cmd::GenerateArgs;
@@ -359,7 +361,14 @@ fn follow_run<N: Started>(
     others: &mut [N],
 ) -> anyhow::Result<Result<(), String>> {
     let mut node = RosNode::new("causal_arm_launch", &[], ros_args)?;
-    let acks = node.subscription::<Clock>(causal_arm_graph::ACK_TOPIC, qos::default_reliable())?;
+    // Progress only from the recorder's writers: any participant may write on the topic.
+    let screen = Rc::new(Screen::of_graph_file(&mut node)?);
+    let mut acks = Screened::<Clock, u64>::new(
+        &mut node,
+        causal_arm_graph::ACK_TOPIC,
+        qos::default_reliable(),
+        &screen,
+    )?;
     let step_ns = options.sim.dt * options.sim.substeps as f64 * 1e9;
     let total = options.plan.total_steps();
     let mut counter = Counter::new(
@@ -368,9 +377,8 @@ fn follow_run<N: Started>(
         "steps",
     );
     loop {
-        while let Ok(Some((ack, _))) = acks.take() {
-            counter
-                .set(((ns_from_time(&ack.clock) as f64 / step_ns).round() as u64 + 1).min(total));
+        for stamp in acks.take_admitted(|ack| ns_from_time(&ack.clock)) {
+            counter.set((stamp as f64 / step_ns).round() as u64 + 1);
         }
         if let Some(outcome) = recorder.exited()? {
             counter.finish();

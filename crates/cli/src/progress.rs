@@ -18,6 +18,7 @@ pub struct Counter {
     total: u64,
     started: Instant,
     last_line: Instant,
+    done: u64,
 }
 
 impl Counter {
@@ -42,11 +43,18 @@ impl Counter {
             total,
             started: Instant::now(),
             last_line: Instant::now(),
+            done: 0,
         }
     }
 
-    /// `done` units are finished.
+    /// `done` units are finished. Progress never goes back, and the line of the last unit
+    /// is printed once, however often it is reported.
     pub fn set(&mut self, done: u64) {
+        let done = done.min(self.total);
+        if done <= self.done && done > 0 {
+            return;
+        }
+        self.done = done;
         match &self.bar {
             Some(bar) => bar.set_position(done),
             None if self.last_line.elapsed() >= PLAIN_EVERY || done == self.total => {
@@ -68,5 +76,23 @@ impl Counter {
         if let Some(bar) = self.bar {
             bar.finish_and_clear();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn progress_never_goes_back_and_the_end_is_reached_once() {
+        let mut counter = Counter::new(10, "test", "steps");
+        counter.set(4);
+        counter.set(2);
+        assert_eq!(counter.done, 4);
+        counter.set(10);
+        let printed_at = counter.last_line;
+        counter.set(3);
+        counter.set(99);
+        assert_eq!((counter.done, counter.last_line), (10, printed_at));
     }
 }

@@ -28,10 +28,21 @@ pub struct Screen {
 impl Screen {
     /// Subscribes `node` to `ros_discovery_info`; reads its `trusted_publishers` parameter.
     pub fn new(node: &mut RosNode) -> anyhow::Result<Self> {
+        let setting = node.params().string("trusted_publishers").to_owned();
+        Self::with_setting(node, setting)
+    }
+
+    /// For a node outside the graph file (the launcher following the run): trusts each
+    /// topic's publishers as the graph file names them.
+    pub fn of_graph_file(node: &mut RosNode) -> anyhow::Result<Self> {
+        Self::with_setting(node, String::new())
+    }
+
+    fn with_setting(node: &mut RosNode, setting: String) -> anyhow::Result<Self> {
         Ok(Self {
             announcements: node.discovery_info()?,
             directory: RefCell::new(WriterDirectory::default()),
-            setting: node.params().string("trusted_publishers").to_owned(),
+            setting,
             namespace: node.namespace().to_owned(),
             unreadable: std::cell::Cell::new(0),
         })
@@ -154,5 +165,52 @@ impl<T> Gate<T> {
                 self.topic
             );
         }
+    }
+}
+
+/// A DDS subscription whose samples pass a [`Gate`]: only those of the topic's trusted
+/// writers are taken.
+pub struct Screened<M, T> {
+    pub(crate) subscription: Subscription<M>,
+    pub(crate) screen: Rc<Screen>,
+    pub(crate) gate: Gate<T>,
+}
+
+impl<M: causal_arm_msgs::RosMessage, T> Screened<M, T> {
+    /// Subscribes `node` to `topic` with `qos`, screened by `screen`.
+    pub fn new(
+        node: &mut RosNode,
+        topic: &'static str,
+        qos: ros2_client::QosProfile,
+        screen: &Rc<Screen>,
+    ) -> anyhow::Result<Self> {
+        Ok(Self {
+            subscription: node.subscription::<M>(topic, qos)?,
+            gate: Gate::new(topic, Rc::clone(screen))?,
+            screen: Rc::clone(screen),
+        })
+    }
+
+    /// Every sample already waiting that the gate admits, as `convert` makes it, with the
+    /// held ones now admitted. Reads the graph's announcements only when there is
+    /// something to screen, so an idle poll costs one empty take.
+    pub fn take_admitted(&mut self, convert: impl Fn(M) -> T) -> Vec<T> {
+        let arrived: Vec<_> =
+            std::iter::from_fn(|| self.subscription.take().ok().flatten()).collect();
+        if arrived.is_empty() && self.gate.held() == 0 {
+            return Vec::new();
+        }
+        self.screen.refresh();
+        let mut admitted = self.gate.release();
+        for (sample, info) in arrived {
+            let writer = info.publisher_gid().to_bytes16();
+            admitted.extend(self.gate.admit(writer, convert(sample)));
+        }
+        admitted
+    }
+
+    /// Samples kept out so far.
+    pub fn counts(&self) -> QuarantineCounts {
+        self.gate.counts()
     }
 }

@@ -26,12 +26,11 @@ use causal_arm_protocol::{
     Command, LatchedMessages, QuarantineCounts, Scene, SimState, StepMessages, command_of,
     markers_key, ns_from_time, scene_markers, topics,
 };
-use ros2_client::Subscription;
 
 use crate::feed::LOGGED;
 use crate::flow::AckWindow;
 use crate::intra::{IntraPort, Outlet};
-use crate::screen::{Gate, Screen};
+use crate::screen::{Screen, Screened};
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag, take_next};
 
 fn publish<M: causal_arm_msgs::RosMessage + Clone>(
@@ -139,12 +138,12 @@ impl DdsStatePublisher {
             Some(window) => Some(AckFeed {
                 source: match port.map(|p| p.receiver::<Clock>(ACK_TOPIC)).transpose()? {
                     Some(Some(local)) => AckSource::Local(local),
-                    _ => AckSource::Dds(Screened::new(
+                    _ => AckSource::Dds(Box::new(Screened::new(
                         node,
                         ACK_TOPIC,
                         qos::default_reliable(),
                         screen,
-                    )?),
+                    )?)),
                 },
                 window,
             }),
@@ -226,28 +225,6 @@ enum AckSource {
     Local(Receiver<Clock>),
 }
 
-/// A DDS subscription whose samples are admitted only from the topic's trusted writers.
-struct Screened<M, T> {
-    subscription: Subscription<M>,
-    screen: Rc<Screen>,
-    gate: Gate<T>,
-}
-
-impl<M: causal_arm_msgs::RosMessage, T> Screened<M, T> {
-    fn new(
-        node: &mut RosNode,
-        topic: &'static str,
-        qos: ros2_client::QosProfile,
-        screen: &Rc<Screen>,
-    ) -> anyhow::Result<Box<Self>> {
-        Ok(Box::new(Self {
-            subscription: node.subscription::<M>(topic, qos)?,
-            gate: Gate::new(topic, Rc::clone(screen))?,
-            screen: Rc::clone(screen),
-        }))
-    }
-}
-
 impl AckFeed {
     /// Feeds the window every acknowledgement the screen admits. Called in the window's
     /// wait loop: reads the graph's announcements only when there is something to screen.
@@ -258,22 +235,7 @@ impl AckFeed {
                 .map(|a| ns_from_time(&a.clock))
                 .collect(),
             AckSource::Dds(screened) => {
-                let Screened {
-                    subscription: acks,
-                    screen,
-                    gate,
-                } = &mut **screened;
-                let arrived: Vec<_> = std::iter::from_fn(|| acks.take().ok().flatten()).collect();
-                if arrived.is_empty() && gate.held() == 0 {
-                    return;
-                }
-                screen.refresh();
-                let mut stamps = gate.release();
-                for (ack, info) in arrived {
-                    let writer = info.publisher_gid().to_bytes16();
-                    stamps.extend(gate.admit(writer, ns_from_time(&ack.clock)));
-                }
-                stamps
+                screened.take_admitted(|ack: Clock| ns_from_time(&ack.clock))
             }
         };
         for stamp in stamps {
@@ -286,7 +248,7 @@ impl AckFeed {
     /// Acknowledgements kept out for their writer (none in process).
     fn screened(&self) -> QuarantineCounts {
         match &self.source {
-            AckSource::Dds(screened) => screened.gate.counts(),
+            AckSource::Dds(screened) => screened.counts(),
             AckSource::Local(_) => QuarantineCounts::default(),
         }
     }
@@ -358,12 +320,12 @@ impl DdsCommands {
             .transpose()?
         {
             Some(Some(local)) => ActionSource::Local(local),
-            _ => ActionSource::Dds(Screened::new(
+            _ => ActionSource::Dds(Box::new(Screened::new(
                 node,
                 topics::ACTION,
                 qos::recorded(),
                 &screen,
-            )?),
+            )?)),
         };
         Ok(Self {
             source,
@@ -377,7 +339,7 @@ impl DdsCommands {
     /// Actions kept out for their writer (none in process).
     fn screened(&self) -> QuarantineCounts {
         match &self.source {
-            ActionSource::Dds(screened) => screened.gate.counts(),
+            ActionSource::Dds(screened) => screened.counts(),
             ActionSource::Local(_) => QuarantineCounts::default(),
         }
     }

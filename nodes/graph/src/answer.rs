@@ -53,8 +53,7 @@ pub fn answer_states(
         port,
     };
     let feeds = state_feeds::<StateParts>(&mut source, &recorded)?;
-    let dds_actions = node.publisher::<Action>(topics::ACTION, recorded)?;
-    let actions = Outlet::new(dds_actions, topics::ACTION, port)?;
+    let actions = Outlet::<Action>::open(node, port, topics::ACTION, recorded)?;
 
     // The simulator and, when the run is recorded, the recorder: an action written before
     // the recorder's reader matched would never reach the bag. Those composed with this

@@ -146,6 +146,18 @@ impl IntraPort<'_> {
     }
 }
 
+/// The receiving end of `topic` when `port` (if any) takes it in process; `None`: it comes
+/// over DDS.
+pub fn local_receiver<M: Send + 'static>(
+    port: Option<IntraPort<'_>>,
+    topic: &str,
+) -> anyhow::Result<Option<Receiver<M>>> {
+    match port {
+        Some(port) => port.receiver(topic),
+        None => Ok(None),
+    }
+}
+
 /// A publisher that hands each message to the topic's in-process subscribers and writes
 /// it on DDS for everyone else.
 pub struct Outlet<M: serde::Serialize> {
@@ -155,16 +167,19 @@ pub struct Outlet<M: serde::Serialize> {
 }
 
 impl<M: RosMessage + Clone + Send + 'static> Outlet<M> {
-    /// `dds`, plus the in-process subscribers of `topic` on `port` (if any).
-    pub fn new(
-        dds: ros2_client::Publisher<M>,
-        topic: &'static str,
+    /// `node`'s DDS publisher of `topic` with `qos`, plus the topic's in-process
+    /// subscribers on `port` (if any).
+    pub fn open(
+        node: &mut causal_arm_node::RosNode,
         port: Option<IntraPort<'_>>,
+        topic: &'static str,
+        qos: ros2_client::QosProfile,
     ) -> anyhow::Result<Self> {
         let local = match port {
             Some(port) => port.senders(topic)?,
             None => Vec::new(),
         };
+        let dds = node.publisher(topic, qos)?;
         Ok(Self { dds, local, topic })
     }
 
@@ -208,12 +223,10 @@ impl<M: RosMessage + Send + 'static> Inlet<M> {
         topic: &str,
         qos: ros2_client::QosProfile,
     ) -> anyhow::Result<Self> {
-        if let Some(port) = port
-            && let Some(receiver) = port.receiver(topic)?
-        {
-            return Ok(Self::Local(receiver));
-        }
-        Ok(Self::Dds(Box::new(node.subscription(topic, qos)?)))
+        Ok(match local_receiver(port, topic)? {
+            Some(receiver) => Self::Local(receiver),
+            None => Self::Dds(Box::new(node.subscription(topic, qos)?)),
+        })
     }
 
     /// The next sample already waiting, if any (one DDS could not read is skipped).

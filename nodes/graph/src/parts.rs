@@ -14,7 +14,7 @@ use causal_arm_protocol::{StepMessages, StepParts, WellFormed, fill, step_parts,
 use ros2_client::QosProfile;
 
 use crate::feed::{Feed, LocalFeed, TopicFeed};
-use crate::intra::IntraPort;
+use crate::intra::{IntraPort, local_receiver};
 use crate::screen::Screen;
 
 step_parts! {
@@ -124,9 +124,7 @@ where
     M: RosMessage + WellFormed + Send + 'static,
     P: StepParts + 'static,
 {
-    if let Some(port) = source.port
-        && let Some(receiver) = port.receiver::<M>(topic)?
-    {
+    if let Some(receiver) = local_receiver::<M>(source.port, topic)? {
         return Ok(Box::new(LocalFeed::new(topic, receiver, stamp, put)));
     }
     let subscription = source.node.subscription::<M>(topic, qos.clone())?;

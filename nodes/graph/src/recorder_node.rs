@@ -111,8 +111,7 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
     };
     let feeds = record_feeds(&mut source, &qos::recorded())?;
     let mut latched = LatchedFeed::new(&mut node, port)?;
-    let dds_ack = node.publisher::<Clock>(ACK_TOPIC, qos::default_reliable())?;
-    let ack = Outlet::new(dds_ack, ACK_TOPIC, port)?;
+    let ack = Outlet::<Clock>::open(&mut node, port, ACK_TOPIC, qos::default_reliable())?;
 
     let start = run.options.start_step;
     let mut sink = open_sink(

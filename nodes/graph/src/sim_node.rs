@@ -29,7 +29,7 @@ use causal_arm_protocol::{
 
 use crate::feed::LOGGED;
 use crate::flow::AckWindow;
-use crate::intra::{IntraPort, Outlet};
+use crate::intra::{IntraPort, Outlet, local_receiver};
 use crate::screen::{Screen, Screened};
 use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag, take_next};
 
@@ -136,9 +136,9 @@ impl DdsStatePublisher {
         let recorded = qos::recorded();
         let acks = match paced_by {
             Some(window) => Some(AckFeed {
-                source: match port.map(|p| p.receiver::<Clock>(ACK_TOPIC)).transpose()? {
-                    Some(Some(local)) => AckSource::Local(local),
-                    _ => AckSource::Dds(Box::new(Screened::new(
+                source: match local_receiver(port, ACK_TOPIC)? {
+                    Some(local) => AckSource::Local(local),
+                    None => AckSource::Dds(Box::new(Screened::new(
                         node,
                         ACK_TOPIC,
                         qos::default_reliable(),
@@ -151,7 +151,7 @@ impl DdsStatePublisher {
         };
         macro_rules! outlet {
             ($topic:expr, $qos:expr) => {
-                Outlet::new(node.publisher($topic, $qos)?, $topic, port)?
+                Outlet::open(node, port, $topic, $qos)?
             };
         }
         Ok(Self {
@@ -315,12 +315,9 @@ impl DdsCommands {
         timeout: Duration,
         stop: Arc<AtomicBool>,
     ) -> anyhow::Result<Self> {
-        let source = match port
-            .map(|p| p.receiver::<Action>(topics::ACTION))
-            .transpose()?
-        {
-            Some(Some(local)) => ActionSource::Local(local),
-            _ => ActionSource::Dds(Box::new(Screened::new(
+        let source = match local_receiver(port, topics::ACTION)? {
+            Some(local) => ActionSource::Local(local),
+            None => ActionSource::Dds(Box::new(Screened::new(
                 node,
                 topics::ACTION,
                 qos::recorded(),

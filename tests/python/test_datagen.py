@@ -229,6 +229,15 @@ def _canonical(bag):
     return {t: [(ts, norm(m)) for ts, m in msgs] for t, msgs in topics.items()}
 
 
+def assert_same_bag(bag, reference, differs: str):
+    """`bag` holds the topics of `reference`, message for message and stamp for stamp;
+    a topic that does not fails as "<topic> <differs>"."""
+    a, b = _canonical(bag), _canonical(reference)
+    assert a.keys() == b.keys()
+    for topic in a:
+        assert a[topic] == b[topic], f"{topic} {differs}"
+
+
 @pytest.mark.parametrize("flags, launch_flags", [([], []), (["--move-while-switching", "false"], []),
                                                  (["--arm", "dynamic"], []), ([], ["--composed"])])
 def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, private_netns, flags,
@@ -245,10 +254,7 @@ def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, priv
     arm = "dynamic" if "dynamic" in flags else "kinematic"
     for bag in [dds, local]:
         assert custom_data(bag)["causal_arm.arm"] == arm, "the bag records how the arm moved"
-    a, b = _canonical(dds), _canonical(local)
-    assert a.keys() == b.keys()
-    for topic in a:
-        assert a[topic] == b[topic], f"{topic} differs between launch and generate"
+    assert_same_bag(dds, local, "differs between launch and generate")
 
 
 @pytest.mark.parametrize("composed", [False, True], ids=["processes", "composed"])
@@ -486,10 +492,7 @@ def test_a_killed_launch_resumes_into_the_bag_of_an_uninterrupted_run(causal_arm
     assert r.returncode == 0, r.stderr[-3000:]
     local = tmp_path / "local"
     assert run_cli("generate", *args, "--out", local).returncode == 0
-    a, b = _canonical(out), _canonical(local)
-    assert a.keys() == b.keys()
-    for topic in a:
-        assert a[topic] == b[topic], f"{topic} differs from the uninterrupted run"
+    assert_same_bag(out, local, "differs from the uninterrupted run")
 
 
 def test_generate_reports_progress_in_plain_lines_when_stderr_is_a_pipe(run_cli, tmp_path):

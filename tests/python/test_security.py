@@ -28,7 +28,7 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
 from ros_idl import JointState
-from test_datagen import _canonical
+from test_datagen import assert_same_bag
 
 DOMAIN = 41
 ENCLAVE = "/causal_arm"
@@ -202,10 +202,7 @@ def test_secured_graph_records_a_complete_bag_equal_to_generate(run_cli, causal_
     local = tmp_path / "local"
     g = run_cli("generate", "exp1", "--steps", str(STEPS), "--seed", "4", "--out", local)
     assert g.returncode == 0, g.stderr
-    a, b = _canonical(tmp_path / "secured"), _canonical(local)
-    assert a.keys() == b.keys()
-    for topic in a:
-        assert a[topic] == b[topic], f"{topic} differs from the in-process run"
+    assert_same_bag(tmp_path / "secured", local, "differs from the in-process run")
 
 
 def test_enforce_refuses_a_node_without_an_enclave_and_permissive_warns(run_cli, keystore, private_netns):

@@ -14,7 +14,7 @@ import os
 import subprocess
 import time
 
-from test_datagen import _canonical
+from test_datagen import assert_same_bag
 
 STEP_NS = 1e9 / 24  # dt × substeps of the default simulator
 
@@ -149,10 +149,7 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
     local = tmp_path / "local"
     r = run_cli("generate", "exp1", "--steps", str(steps), "--seed", "4", "--out", local)
     assert r.returncode == 0, r.stderr
-    a, b = _canonical(dds), _canonical(local)
-    assert a.keys() == b.keys()
-    for topic in a:
-        assert a[topic] == b[topic], f"{topic} differs from the in-process run"
+    assert_same_bag(dds, local, "differs from the in-process run")
 
 
 def test_a_composed_graph_takes_its_own_topics_from_its_own_nodes_only(run_cli, causal_arm_bin, tmp_path,
@@ -207,7 +204,4 @@ def test_a_composed_graph_takes_its_own_topics_from_its_own_nodes_only(run_cli, 
     local = tmp_path / "local"
     r = run_cli("generate", "exp1", "--steps", str(steps), "--seed", "4", "--out", local)
     assert r.returncode == 0, r.stderr
-    a, b = _canonical(dds), _canonical(local)
-    assert a.keys() == b.keys()
-    for topic in a:
-        assert a[topic] == b[topic], f"{topic} differs from the in-process run"
+    assert_same_bag(dds, local, "differs from the in-process run")

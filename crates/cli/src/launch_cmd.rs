@@ -71,22 +71,6 @@ fn interrupt(child: &Child) {
     }
 }
 
-fn wait_with_timeout(
-    child: &mut Child,
-    limit: Duration,
-) -> anyhow::Result<Option<std::process::ExitStatus>> {
-    let start = Instant::now();
-    loop {
-        if let Some(status) = child.try_wait()? {
-            return Ok(Some(status));
-        }
-        if start.elapsed() > limit {
-            return Ok(None);
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 /// Each node's name and ROS arguments, in the graph file's start order: the run's
 /// parameters for every node, and the recorder's output.
 pub fn node_commands(options: &GenerateOptions) -> anyhow::Result<Vec<(String, Vec<String>)>> {
@@ -142,13 +126,13 @@ pub(crate) fn spawn_nodes(
 /// Interrupts every node still running and waits up to 10 s for it to finalize, then
 /// kills it.
 pub(crate) fn stop_nodes(children: &mut [(String, Child)]) -> anyhow::Result<()> {
-    for (_, child) in children {
-        if child.try_wait()?.is_none() {
-            interrupt(child);
+    for node in children {
+        if node.exited()?.is_none() {
+            node.interrupt();
         }
-        if wait_with_timeout(child, Duration::from_secs(10))?.is_none() {
-            child.kill()?;
-            child.wait()?;
+        if !wait_for_exit(node, Duration::from_secs(10))? {
+            node.1.kill()?;
+            node.1.wait()?;
         }
     }
     Ok(())
@@ -235,20 +219,9 @@ pub(crate) fn run_graph(
     commands: Vec<(String, Vec<String>)>,
     ros_args: &RosArgs,
 ) -> anyhow::Result<()> {
-    let ends_run = run_ending_node()?;
-    let recorder_at = (commands.iter())
-        .position(|(name, _)| *name == ends_run)
-        .with_context(|| format!("{ends_run} is not among the nodes to start"))?;
-    let stop = causal_arm_node::runtime::stop_flag();
-    let mut children = spawn_nodes(commands)?;
-    let mut recorder = children.remove(recorder_at);
-    let outcome = follow_run(options, ros_args, &stop, &mut recorder, &mut children);
-    // Whatever ended the run, no node outlives it.
-    stop_nodes(&mut children)?;
-    if let Err(failure) = outcome? {
-        bail!("{ends_run} failed ({failure})");
-    }
-    Ok(())
+    let recorder_at = run_ending_position(&commands)?;
+    let children = spawn_nodes(commands)?;
+    follow_graph(options, ros_args, children, recorder_at, stop_nodes)
 }
 
 /// As [`run_graph`], with the nodes composed in this process (`launch --composed`, see
@@ -258,42 +231,54 @@ fn run_composed(
     commands: Vec<(String, Vec<String>)>,
     ros_args: &RosArgs,
 ) -> anyhow::Result<()> {
-    let ends_run = run_ending_node()?;
+    let recorder_at = run_ending_position(&commands)?;
     let mut nodes = Vec::new();
     for (name, args) in commands {
         let argv: Vec<String> = std::iter::once(name.clone()).chain(args).collect();
         let (node_args, _) = RosArgs::split(&argv)?;
         nodes.push((name, node_args));
     }
-    let stop = causal_arm_node::runtime::stop_flag();
-    let mut running = causal_arm_graph::compose::spawn(nodes)?;
-    let recorder_at = (running.iter())
-        .position(|n| n.name == ends_run)
-        .with_context(|| format!("{ends_run} is not among the nodes to start"))?;
-    let mut recorder = running.remove(recorder_at);
-    let outcome = follow_run(options, ros_args, &stop, &mut recorder, &mut running);
-    // Whatever ended the run, no node outlives it.
-    stop.store(true, Ordering::SeqCst);
-    for node in &mut running {
-        if let Some(Err(e)) = node.finish() {
-            tracing::warn!("{}: {e:#}", node.name);
+    let running = causal_arm_graph::compose::spawn(nodes)?;
+    follow_graph(options, ros_args, running, recorder_at, |others| {
+        causal_arm_node::runtime::stop_flag().store(true, Ordering::SeqCst);
+        for node in others {
+            if let Some(Err(e)) = node.finish() {
+                tracing::warn!("{}: {e:#}", node.name);
+            }
         }
-    }
-    if let Err(failure) = outcome? {
-        bail!("{ends_run} failed ({failure})");
-    }
-    Ok(())
+        Ok(())
+    })
 }
 
-/// The graph file's node whose exit ends the run (the recorder).
-fn run_ending_node() -> anyhow::Result<String> {
-    Ok(graph()?
-        .nodes
-        .iter()
+/// Where the graph file's run-ending node (the recorder) is among `commands`.
+fn run_ending_position(commands: &[(String, Vec<String>)]) -> anyhow::Result<usize> {
+    let graph = graph()?;
+    let ends_run = (graph.nodes.iter())
         .find(|n| n.ends_run)
-        .ok_or_else(|| anyhow::anyhow!("the graph has no node that ends the run"))?
-        .name
-        .clone())
+        .ok_or_else(|| anyhow::anyhow!("the graph has no node that ends the run"))?;
+    (commands.iter())
+        .position(|(name, _)| *name == ends_run.name)
+        .with_context(|| format!("{} is not among the nodes to start", ends_run.name))
+}
+
+/// Follows the started `nodes` until the one at `recorder_at` exits (see [`follow_run`]),
+/// then ends the others with `stop_others`: whatever ended the run, no node outlives it.
+/// Fails naming the recorder when it failed.
+fn follow_graph<N: Started>(
+    options: &GenerateOptions,
+    ros_args: &RosArgs,
+    mut nodes: Vec<N>,
+    recorder_at: usize,
+    stop_others: impl FnOnce(&mut [N]) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let stop = causal_arm_node::runtime::stop_flag();
+    let mut recorder = nodes.remove(recorder_at);
+    let outcome = follow_run(options, ros_args, &stop, &mut recorder, &mut nodes);
+    stop_others(&mut nodes)?;
+    if let Err(failure) = outcome? {
+        bail!("{} failed ({failure})", recorder.name());
+    }
+    Ok(())
 }
 
 /// A started node, a process or a composed thread, as [`follow_run`] watches it.
@@ -377,7 +362,9 @@ fn follow_run<N: Started>(
         "steps",
     );
     loop {
-        for stamp in acks.take_admitted(|ack| ns_from_time(&ack.clock)) {
+        let stamp = |ack: Clock| ns_from_time(&ack.clock);
+        let unreadable = |e| tracing::debug!("ignoring an unreadable acknowledgement: {e}");
+        for stamp in acks.take_admitted(stamp, unreadable).1 {
             counter.set((stamp as f64 / step_ns).round() as u64 + 1);
         }
         if let Some(outcome) = recorder.exited()? {
@@ -402,13 +389,18 @@ fn follow_run<N: Started>(
     }
 }
 
-/// Waits up to `limit` for `node` to exit.
-fn wait_for_exit<N: Started>(node: &mut N, limit: Duration) -> anyhow::Result<()> {
+/// Waits up to `limit` for `node` to exit; returns whether it did.
+fn wait_for_exit<N: Started>(node: &mut N, limit: Duration) -> anyhow::Result<bool> {
     let start = Instant::now();
-    while node.exited()?.is_none() && start.elapsed() < limit {
+    loop {
+        if node.exited()?.is_some() {
+            return Ok(true);
+        }
+        if start.elapsed() > limit {
+            return Ok(false);
+        }
         std::thread::sleep(Duration::from_millis(20));
     }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -6,17 +6,14 @@
 //! place of the step's real one.
 
 use std::cell::{Cell, RefCell};
-use std::rc::Rc;
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::Duration;
 
+use causal_arm_msgs::RosMessage;
 use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_protocol::{QuarantineCounts, StepJoiner, StepParts, WellFormed, ns_from_time};
-use ros2_client::{MessageInfo, Subscription};
-use serde::de::DeserializeOwned;
 
-use crate::screen::{Gate, Screen};
-use crate::take_next;
+use crate::screen::Screened;
 
 /// Stray samples of one kind logged in full before the rest are only counted (the
 /// feeds and the simulator's action wait).
@@ -40,55 +37,32 @@ pub trait Feed<P> {
 /// files it into the step's parts (see [`StepJoiner::insert`]).
 pub struct TopicFeed<M, P> {
     topic: &'static str,
-    subscription: Subscription<M>,
+    screened: RefCell<Screened<M, M>>,
     stamp: fn(&M) -> &Time,
     put: fn(&mut P, M) -> bool,
     unreadable: Cell<u64>,
-    screen: Rc<Screen>,
-    gate: RefCell<Gate<M>>,
 }
 
 impl<M, P> TopicFeed<M, P> {
-    /// A feed of `subscription` on `topic`, accepting samples only from writers of the
-    /// nodes `screen` trusts for the topic.
+    /// A feed of `topic` from `screened`, its subscription accepting samples only from
+    /// writers of the nodes its screen trusts for the topic.
     pub fn new(
         topic: &'static str,
-        subscription: Subscription<M>,
+        screened: Screened<M, M>,
         stamp: fn(&M) -> &Time,
         put: fn(&mut P, M) -> bool,
-        screen: Rc<Screen>,
-    ) -> anyhow::Result<Self> {
-        Ok(Self {
+    ) -> Self {
+        Self {
             topic,
-            subscription,
+            screened: RefCell::new(screened),
             stamp,
             put,
             unreadable: Cell::new(0),
-            gate: RefCell::new(Gate::new(topic, Rc::clone(&screen))?),
-            screen,
-        })
+        }
     }
 }
 
-impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> TopicFeed<M, P> {
-    /// Files `message` if its writer is trusted, holds it while the writer is unknown,
-    /// and drops it (counted) if another node owns the writer.
-    fn screen_and_file(&self, joiner: &mut StepJoiner<P>, message: M, info: &MessageInfo) {
-        let writer = info.publisher_gid().to_bytes16();
-        let admitted = self.gate.borrow_mut().admit(writer, message);
-        for message in admitted {
-            self.file(joiner, message);
-        }
-    }
-
-    /// Files the held samples whose writers were announced since, as trusted.
-    fn release_held(&self, joiner: &mut StepJoiner<P>) {
-        let released = self.gate.borrow_mut().release();
-        for message in released {
-            self.file(joiner, message);
-        }
-    }
-
+impl<M: RosMessage + WellFormed, P: StepParts> TopicFeed<M, P> {
     fn file(&self, joiner: &mut StepJoiner<P>, message: M) {
         if let Err(problem) = file_sample(self.topic, self.stamp, self.put, joiner, message) {
             self.count_unreadable(problem);
@@ -131,35 +105,31 @@ fn count_unreadable(count: &Cell<u64>, topic: &str, problem: impl std::fmt::Disp
     }
 }
 
-impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> Feed<P> for TopicFeed<M, P> {
+impl<M: RosMessage + WellFormed, P: StepParts> Feed<P> for TopicFeed<M, P> {
     fn topic(&self) -> &'static str {
         self.topic
     }
 
     fn drain(&self, joiner: &mut StepJoiner<P>) -> usize {
-        self.screen.refresh();
-        self.release_held(joiner);
-        let mut arrived = 0;
-        loop {
-            match self.subscription.take() {
-                Ok(Some((message, info))) => self.screen_and_file(joiner, message, &info),
-                Ok(None) => return arrived,
-                Err(e) => self.count_unreadable(format!("{e:?}")),
-            }
-            arrived += 1;
+        let (arrived, admitted) = self
+            .screened
+            .borrow_mut()
+            .take_admitted(|m| m, |e| self.count_unreadable(e));
+        for message in admitted {
+            self.file(joiner, message);
         }
+        arrived
     }
 
     fn wait(&self, joiner: &mut StepJoiner<P>, timeout: Duration) -> bool {
-        let taken = take_next(&self.subscription, timeout);
-        self.screen.refresh();
-        self.release_held(joiner);
-        match taken {
-            Some(Ok((message, info))) => self.screen_and_file(joiner, message, &info),
-            Some(Err(e)) => self.count_unreadable(e),
-            None => return false,
+        let (arrived, admitted) =
+            self.screened
+                .borrow_mut()
+                .wait_admitted(timeout, |m| m, |e| self.count_unreadable(e));
+        for message in admitted {
+            self.file(joiner, message);
         }
-        true
+        arrived
     }
 
     fn unreadable(&self) -> u64 {
@@ -167,7 +137,7 @@ impl<M: 'static + DeserializeOwned + WellFormed, P: StepParts> Feed<P> for Topic
     }
 
     fn screened(&self) -> QuarantineCounts {
-        self.gate.borrow().counts()
+        self.screened.borrow().counts()
     }
 }
 

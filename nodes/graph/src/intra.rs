@@ -103,11 +103,6 @@ pub struct IntraPort<'a> {
 }
 
 impl IntraPort<'_> {
-    /// The node this port belongs to.
-    pub fn node(&self) -> &str {
-        self.node
-    }
-
     /// Whether this node takes `topic` in process (and so must not subscribe on DDS).
     pub fn takes(&self, topic: &str) -> bool {
         self.bus

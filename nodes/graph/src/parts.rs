@@ -15,7 +15,7 @@ use ros2_client::QosProfile;
 
 use crate::feed::{Feed, LocalFeed, TopicFeed};
 use crate::intra::{IntraPort, local_receiver};
-use crate::screen::Screen;
+use crate::screen::{Screen, Screened};
 
 step_parts! {
     /// What the babbler needs of a step: the topics a `SimState` is read from.
@@ -127,9 +127,8 @@ where
     if let Some(receiver) = local_receiver::<M>(source.port, topic)? {
         return Ok(Box::new(LocalFeed::new(topic, receiver, stamp, put)));
     }
-    let subscription = source.node.subscription::<M>(topic, qos.clone())?;
-    let feed = TopicFeed::new(topic, subscription, stamp, put, source.screen.clone())?;
-    Ok(Box::new(feed))
+    let screened = Screened::new(source.node, topic, qos.clone(), source.screen)?;
+    Ok(Box::new(TopicFeed::new(topic, screened, stamp, put)))
 }
 
 /// Feeds of the five state topics, in the graph's order.

@@ -6,14 +6,16 @@
 
 use std::cell::RefCell;
 use std::rc::Rc;
+use std::time::Duration;
 
 use causal_arm_msgs::rmw_dds_common::msg::ParticipantEntitiesInfo;
 use causal_arm_node::RosNode;
 use causal_arm_protocol::graph::graph;
 use causal_arm_protocol::{Gid, Quarantine, QuarantineCounts, Trusted, WriterDirectory};
-use ros2_client::Subscription;
+use ros2_client::{MessageInfo, Subscription};
 
 use crate::feed::LOGGED;
+use crate::take_next;
 
 /// A node's view of which node owns which writer.
 pub struct Screen {
@@ -191,22 +193,59 @@ impl<M: causal_arm_msgs::RosMessage, T> Screened<M, T> {
         })
     }
 
-    /// Every sample already waiting that the gate admits, as `convert` makes it, with the
-    /// held ones now admitted. Reads the graph's announcements only when there is
-    /// something to screen, so an idle poll costs one empty take.
-    pub fn take_admitted(&mut self, convert: impl Fn(M) -> T) -> Vec<T> {
-        let arrived: Vec<_> =
-            std::iter::from_fn(|| self.subscription.take().ok().flatten()).collect();
+    /// Every sample already waiting, screened: how many arrived (those that could not be
+    /// read included, each handed to `unreadable`), and what the gate admits, as `convert`
+    /// makes it, after the held samples it admits now. Reads the graph's announcements
+    /// only when there is something to screen, so an idle poll costs one empty take.
+    pub fn take_admitted(
+        &mut self,
+        convert: impl Fn(M) -> T,
+        mut unreadable: impl FnMut(anyhow::Error),
+    ) -> (usize, Vec<T>) {
+        let mut arrived = Vec::new();
+        let mut count = 0;
+        loop {
+            match self.subscription.take() {
+                Ok(Some(sample)) => arrived.push(sample),
+                Ok(None) => break,
+                Err(e) => unreadable(anyhow::anyhow!("{e:?}")),
+            }
+            count += 1;
+        }
         if arrived.is_empty() && self.gate.held() == 0 {
-            return Vec::new();
+            return (count, Vec::new());
         }
         self.screen.refresh();
         let mut admitted = self.gate.release();
         for (sample, info) in arrived {
-            let writer = info.publisher_gid().to_bytes16();
-            admitted.extend(self.gate.admit(writer, convert(sample)));
+            admitted.extend(self.admit(sample, &info, &convert));
         }
-        admitted
+        (count, admitted)
+    }
+
+    /// Waits up to `timeout` for one sample (one that cannot be read goes to
+    /// `unreadable`), then screens it: whether one arrived, and what the gate admits, as
+    /// `convert` makes it, after the held samples it admits now.
+    pub fn wait_admitted(
+        &mut self,
+        timeout: Duration,
+        convert: impl Fn(M) -> T,
+        unreadable: impl FnOnce(anyhow::Error),
+    ) -> (bool, Vec<T>) {
+        let taken = take_next(&self.subscription, timeout);
+        self.screen.refresh();
+        let mut admitted = self.gate.release();
+        match taken {
+            Some(Ok((sample, info))) => admitted.extend(self.admit(sample, &info, &convert)),
+            Some(Err(e)) => unreadable(e),
+            None => return (false, admitted),
+        }
+        (true, admitted)
+    }
+
+    fn admit(&mut self, sample: M, info: &MessageInfo, convert: &impl Fn(M) -> T) -> Vec<T> {
+        let writer = info.publisher_gid().to_bytes16();
+        self.gate.admit(writer, convert(sample))
     }
 
     /// Samples kept out so far.

@@ -31,7 +31,7 @@ use crate::feed::LOGGED;
 use crate::flow::AckWindow;
 use crate::intra::{IntraPort, Outlet, local_receiver};
 use crate::screen::{Screen, Screened};
-use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag, take_next};
+use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag};
 
 fn publish<M: causal_arm_msgs::RosMessage + Clone>(
     p: &Outlet<M>,
@@ -146,6 +146,7 @@ impl DdsStatePublisher {
                     )?)),
                 },
                 window,
+                unreadable: 0,
             }),
             None => None,
         };
@@ -215,6 +216,8 @@ impl DdsStatePublisher {
 struct AckFeed {
     source: AckSource,
     window: AckWindow,
+    /// Acknowledgements that could not be read.
+    unreadable: u64,
 }
 
 /// Where acknowledgements come from: over DDS only from the recorder's writers (screened
@@ -235,7 +238,15 @@ impl AckFeed {
                 .map(|a| ns_from_time(&a.clock))
                 .collect(),
             AckSource::Dds(screened) => {
-                screened.take_admitted(|ack: Clock| ns_from_time(&ack.clock))
+                let unreadable = &mut self.unreadable;
+                let stamp = |ack: Clock| ns_from_time(&ack.clock);
+                let (_, stamps) = screened.take_admitted(stamp, |e| {
+                    *unreadable += 1;
+                    if *unreadable <= LOGGED {
+                        tracing::warn!("ignoring an unreadable acknowledgement: {e}");
+                    }
+                });
+                stamps
             }
         };
         for stamp in stamps {
@@ -352,30 +363,19 @@ impl DdsCommands {
     /// Waits up to 100 ms for an action; queues what the screen admits.
     fn receive(&mut self) {
         const WAIT: Duration = Duration::from_millis(100);
-        let (actions, screen, gate) = match &mut self.source {
-            ActionSource::Local(receiver) => {
-                self.admitted.extend(receiver.recv_timeout(WAIT).ok());
-                return;
-            }
+        let mut undecodable = None;
+        let admitted = match &mut self.source {
+            ActionSource::Local(receiver) => receiver.recv_timeout(WAIT).into_iter().collect(),
             ActionSource::Dds(screened) => {
-                let Screened {
-                    subscription,
-                    screen,
-                    gate,
-                } = &mut **screened;
-                (subscription, screen, gate)
+                let keep = |action| action;
+                screened
+                    .wait_admitted(WAIT, keep, |e| undecodable = Some(e))
+                    .1
             }
         };
-        let taken = take_next(actions, WAIT);
-        screen.refresh();
-        self.admitted.extend(gate.release());
-        match taken {
-            Some(Ok((action, info))) => {
-                let writer = info.publisher_gid().to_bytes16();
-                self.admitted.extend(gate.admit(writer, action));
-            }
-            Some(Err(e)) => self.skip(format_args!("undecodable: {e:#}")),
-            None => {}
+        self.admitted.extend(admitted);
+        if let Some(e) = undecodable {
+            self.skip(format_args!("undecodable: {e:#}"));
         }
     }
 

@@ -2,6 +2,7 @@
 
 mod bag_cmd;
 mod choice;
+mod discover_cmd;
 mod explain_cmd;
 mod generate_cmd;
 mod intervene_cmd;
@@ -65,6 +66,9 @@ enum Command {
     Place(place_cmd::PlaceArgs),
     /// SHAP attributions of a forward model: heat map, PDPs and relevance report.
     Explain(explain_cmd::ExplainArgs),
+    /// Which action drives which state feature, tested straight on a bag's transitions
+    /// (no model), beside the standard linear Granger tests.
+    Discover(discover_cmd::DiscoverArgs),
     /// Causal ground truth: intervene on every action in states of a bag, record what changes.
     Intervene(intervene_cmd::InterveneArgs),
     /// Call a service with a JSON request (like `ros2 service call`).
@@ -117,6 +121,7 @@ fn main() -> std::process::ExitCode {
         Command::Reach(args) => reach_cmd::run(args, &ros_args),
         Command::Place(args) => place_cmd::run(args, &ros_args),
         Command::Explain(args) => explain_cmd::run(args),
+        Command::Discover(args) => discover_cmd::run(args),
         Command::Intervene(args) => intervene_cmd::run(args),
         Command::Service(args) => service_cmd::run(args, &ros_args),
         Command::Security(args) => security_cmd::run(args),

@@ -141,9 +141,20 @@ fn cache_err(path: &Path, problem: impl std::fmt::Display) -> DatasetError {
     }
 }
 
+/// Writes `data` as a safetensors file in the cache's layout (`states`, `actions`,
+/// `next_states`, `episodes`, `holding`, `steps`, `stamps_ns`; the experiment in the
+/// metadata), for tools outside the project (numpy, the causal-discovery anchors).
+/// Atomic: a reader sees the whole file or none.
+pub fn write_safetensors(data: &Dataset, path: &Path) -> Result<(), DatasetError> {
+    write(data, path)
+}
+
 /// Writes atomically (temp file + rename) so a crash never leaves a half file behind.
 fn write(data: &Dataset, path: &Path) -> Result<(), DatasetError> {
-    let dir = path.parent().expect("cache files live in a directory");
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir).map_err(|e| cache_err(dir, e))?;
     let (rows, sw, aw) = (data.rows(), data.state_width(), data.action_width());
     fn view<'a>(

@@ -13,7 +13,7 @@ mod contexts;
 mod features;
 
 pub use build::{BagSource, from_bag, state_features};
-pub use cache::{Cache, CacheOutcome, load_bags};
+pub use cache::{Cache, CacheOutcome, load_bags, write_safetensors};
 pub use causal_arm_protocol::Experiment;
 pub use contexts::{Context, ContextReader, ContextState};
 pub use features::{

@@ -25,6 +25,13 @@ pub struct Scores {
     pub false_positives: usize,
     /// Present but not claimed.
     pub false_negatives: usize,
+    /// Scored pairs left undecided (neither claimed nor denied; counted in the false
+    /// negatives where present).
+    #[serde(default)]
+    pub undecided: usize,
+    /// Present pairs the method denied outright ("does not"): confident wrong negatives.
+    #[serde(default)]
+    pub false_denials: usize,
     /// TP / (TP + FP).
     pub precision: Option<f64>,
     /// TP / (TP + FN).
@@ -41,13 +48,15 @@ pub struct Scores {
 
 /// Scores `verdicts` and raw `scores` against `truth` (`Some(true)` present, `Some(false)`
 /// absent, `None` not scored), over the pairs `include` selects. All slices are aligned.
+/// An undecided pair counts as not claimed; a denied present pair is also a false denial.
 pub fn score(
     truth: &[Option<bool>],
-    verdicts: &[bool],
+    verdicts: &[Verdict],
     scores: &[f64],
     include: impl Fn(usize) -> bool,
 ) -> Scores {
     let (mut tp, mut fp, mut fn_, mut not_scored) = (0, 0, 0, 0);
+    let (mut undecided, mut false_denials) = (0, 0);
     let mut ranked: Vec<(f64, bool)> = Vec::new();
     for i in (0..truth.len()).filter(|&i| include(i)) {
         let Some(present) = truth[i] else {
@@ -55,7 +64,10 @@ pub fn score(
             continue;
         };
         ranked.push((scores[i], present));
-        match (verdicts[i], present) {
+        let claimed = verdicts[i] == Verdict::Drives;
+        undecided += usize::from(verdicts[i] == Verdict::Undecided);
+        false_denials += usize::from(verdicts[i] == Verdict::DoesNot && present);
+        match (claimed, present) {
             (true, true) => tp += 1,
             (true, false) => fp += 1,
             (false, true) => fn_ += 1,
@@ -76,6 +88,8 @@ pub fn score(
         true_positives: tp,
         false_positives: fp,
         false_negatives: fn_,
+        undecided,
+        false_denials,
         precision,
         recall,
         f1,
@@ -159,9 +173,78 @@ pub struct EdgeClaims {
     pub interval: Option<Vec<Vec<[f64; 2]>>>,
     /// The verdict: the action drives the feature.
     pub drives: Vec<Vec<bool>>,
+    /// Three-valued verdicts with their reasons, where the method decides "does not" apart
+    /// from "undecided" (`None`: a two-valued rule, where not claimed means does not).
+    /// `drives` is always `verdict == Drives`, so readers of two-valued claims keep working.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub decisions: Option<Vec<Vec<Decision>>>,
+}
+
+/// What a method concludes about one edge. Only evidence decides "drives" or "does not";
+/// where it does not, the honest answer is "undecided".
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Verdict {
+    /// The action changes the feature.
+    Drives,
+    /// The evidence bounds the action's effect on the feature below what the data resolves.
+    DoesNot,
+    /// Neither is shown by the evidence at hand.
+    Undecided,
+}
+
+impl Verdict {
+    /// Name in tables and files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::Drives => "drives",
+            Verdict::DoesNot => "does-not",
+            Verdict::Undecided => "undecided",
+        }
+    }
+}
+
+/// A verdict with the evidence behind it, so a user can see why an edge is (not) claimed
+/// and what would settle an undecided one.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Decision {
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Which evidence decided it (`data`, `model`, `data+model`, or empty when undecided).
+    pub source: String,
+    /// Why, in words, with the figures that decided.
+    pub reason: String,
+    /// For an undecided edge: what would decide it (more steps, more epochs, …).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub to_decide: String,
 }
 
 impl EdgeClaims {
+    /// The verdict on edge (`a`, `k`): the three-valued decision where the method makes
+    /// one, else drives or does not by the two-valued rule.
+    pub fn verdict(&self, a: usize, k: usize) -> Verdict {
+        match &self.decisions {
+            Some(d) => d[a][k].verdict,
+            None if self.drives[a][k] => Verdict::Drives,
+            None => Verdict::DoesNot,
+        }
+    }
+
+    /// How many edges get each verdict: (drives, does not, undecided).
+    pub fn verdict_counts(&self) -> (usize, usize, usize) {
+        let mut counts = (0, 0, 0);
+        for a in 0..self.action_names.len() {
+            for k in 0..self.state_names.len() {
+                match self.verdict(a, k) {
+                    Verdict::Drives => counts.0 += 1,
+                    Verdict::DoesNot => counts.1 += 1,
+                    Verdict::Undecided => counts.2 += 1,
+                }
+            }
+        }
+        counts
+    }
+
     /// Whether `action` drives `state` (false for unknown names).
     pub fn drives(&self, action: &str, state: &str) -> bool {
         let a = self.action_names.iter().position(|n| n == action);
@@ -178,9 +261,19 @@ impl EdgeClaims {
         if bad(&self.score, na, ns)
             || bad(&self.drives, na, ns)
             || self.interval.as_ref().is_some_and(|i| bad(i, na, ns))
+            || self.decisions.as_ref().is_some_and(|d| bad(d, na, ns))
         {
             return Err(format!(
                 "claims of {} ({}) are not {na} actions × {ns} states",
+                self.method, self.context
+            ));
+        }
+        if let Some(d) = &self.decisions
+            && (0..na)
+                .any(|a| (0..ns).any(|k| (d[a][k].verdict == Verdict::Drives) != self.drives[a][k]))
+        {
+            return Err(format!(
+                "claims of {} ({}): drives disagrees with the verdicts",
                 self.method, self.context
             ));
         }
@@ -240,7 +333,8 @@ mod tests {
     #[test]
     fn counts_and_rates_follow_their_definitions() {
         let truth = [Some(true), Some(true), Some(false), Some(false), None];
-        let verdicts = [true, false, true, false, true];
+        use Verdict::{DoesNot, Drives, Undecided};
+        let verdicts = [Drives, Undecided, Drives, DoesNot, Drives];
         let scores = [0.9, 0.2, 0.5, 0.1, 0.7];
         let s = score(&truth, &verdicts, &scores, |_| true);
         assert_eq!(
@@ -248,6 +342,9 @@ mod tests {
             (1, 1, 1)
         );
         assert_eq!((s.scored, s.not_scored, s.shd), (4, 1, 2));
+        assert_eq!((s.undecided, s.false_denials), (1, 0));
+        let denied = score(&truth, &[DoesNot; 5], &scores, |_| true);
+        assert_eq!((denied.false_denials, denied.undecided), (2, 0));
         assert_eq!(
             (s.precision, s.recall, s.f1),
             (Some(0.5), Some(0.5), Some(0.5))
@@ -265,11 +362,11 @@ mod tests {
         assert_eq!(average_precision(&ranked), Some(0.5));
         assert_eq!(auroc(&[(1.0, true)]), None);
         assert_eq!(average_precision(&[(1.0, false)]), None);
-        let s = score(&[Some(false)], &[false], &[0.0], |_| true);
+        let s = score(&[Some(false)], &[Verdict::DoesNot], &[0.0], |_| true);
         assert_eq!((s.precision, s.recall, s.f1), (None, None, None));
         let perfect = score(
             &[Some(true), Some(false)],
-            &[true, false],
+            &[Verdict::Drives, Verdict::DoesNot],
             &[2.0, 1.0],
             |_| true,
         );

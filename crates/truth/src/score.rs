@@ -82,7 +82,10 @@ pub fn score_claims(truth: &Truth, claims: &EdgeClaims) -> Result<Vec<ScoreRow>,
             Edge::Rare => None,
         })
         .collect();
-    let verdicts: Vec<bool> = claims.drives.iter().flatten().copied().collect();
+    let na = truth.action_names.len();
+    let verdicts: Vec<_> = (0..na * ns)
+        .map(|i| claims.verdict(i / ns, i % ns))
+        .collect();
     let raw: Vec<f64> = claims.score.iter().flatten().copied().collect();
     let row = |block: &str, scores: Scores| ScoreRow {
         method: claims.method.clone(),
@@ -146,7 +149,7 @@ pub fn score_horizons(truth: &Truth, claims: &[EdgeClaims]) -> Result<Vec<ScoreR
 pub fn score_table(rows: &[ScoreRow]) -> String {
     let rate = |v: Option<f64>| v.map_or("   n/a".to_owned(), |v| format!("{v:>6.3}"));
     let mut out = format!(
-        "{:<14} {:<14} {:<8} {:>2} {:>6} {:>6} {:>6} {:>4} {:>6} {:>6} {:>5} {:>4}\n",
+        "{:<14} {:<14} {:<8} {:>2} {:>6} {:>6} {:>6} {:>4} {:>6} {:>6} {:>5} {:>4} {:>5} {:>6}\n",
         "method",
         "context",
         "block",
@@ -158,12 +161,14 @@ pub fn score_table(rows: &[ScoreRow]) -> String {
         "AUROC",
         "AP",
         "pairs",
-        "rare"
+        "rare",
+        "undec",
+        "denied"
     );
     for r in rows {
         let s = &r.scores;
         out.push_str(&format!(
-            "{:<14} {:<14} {:<8} {:>2} {} {} {} {:>4} {} {} {:>5} {:>4}\n",
+            "{:<14} {:<14} {:<8} {:>2} {} {} {} {:>4} {} {} {:>5} {:>4} {:>5} {:>6}\n",
             r.method,
             r.context,
             r.block,
@@ -175,7 +180,9 @@ pub fn score_table(rows: &[ScoreRow]) -> String {
             rate(s.auroc),
             rate(s.average_precision),
             s.scored,
-            s.not_scored
+            s.not_scored,
+            s.undecided,
+            s.false_denials
         ));
     }
     out
@@ -231,6 +238,7 @@ mod tests {
             score: vec![vec![3.0, 2.0], vec![0.1, 0.2]],
             interval: None,
             drives: vec![vec![true, true], vec![false, false]],
+            decisions: None,
         }
     }
 

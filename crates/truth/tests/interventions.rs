@@ -220,6 +220,7 @@ fn claims_from(t: &Truth, context: &str) -> EdgeClaims {
             .iter()
             .map(|r| r.iter().map(|&f| f > 0.0).collect())
             .collect(),
+        decisions: None,
     }
 }
 

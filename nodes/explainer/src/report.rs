@@ -333,6 +333,7 @@ mod tests {
                 vec![[0.0, 0.0], [1.5, 2.5]],
             ]),
             drives: vec![vec![true, false], vec![false, true]],
+            decisions: None,
         }
     }
 

@@ -403,6 +403,7 @@ mod tests {
             score: vec![vec![score]],
             interval: Some(vec![vec![[lower, lower + 1.0]]]),
             drives: vec![vec![drives]],
+            decisions: None,
         }
     }
 

@@ -47,6 +47,7 @@ pub fn calibrated_claims(
         score,
         interval: Some(interval),
         drives,
+        decisions: None,
     }
 }
 
@@ -211,6 +212,7 @@ pub(crate) fn threshold_claims(
             .collect(),
         score,
         interval: None,
+        decisions: None,
     }
 }
 
@@ -322,6 +324,7 @@ pub fn union_claims(method: &str, context: &str, parts: &[UnionPart]) -> Option<
             .collect(),
         score,
         interval: union_interval(parts, na, ns),
+        decisions: None,
     })
 }
 

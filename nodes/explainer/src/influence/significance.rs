@@ -122,6 +122,7 @@ pub fn significance_claims(
         score,
         interval: Some(interval),
         drives,
+        decisions: None,
     }
 }
 

@@ -1,0 +1,83 @@
+//! The one-step changes Δs(t) = s(t+1) − s(t) every data-level test explains, Euler angles
+//! wrapped, on a seeded draw of the transitions.
+
+use causal_arm_dataset::{Dataset, angular_features, wrap_angle};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand::seq::index::sample;
+
+/// The change of every state feature over transition `r`, in f64 (exact for f32 states),
+/// Euler angles wrapped into (−π, π].
+pub fn one_step_changes(data: &Dataset, r: usize) -> Vec<f64> {
+    let angular = angular_features(data.experiment);
+    data.next_state(r)
+        .iter()
+        .zip(data.state(r))
+        .zip(&angular)
+        .map(|((&next, &now), &angle)| {
+            let d = next as f64 - now as f64;
+            if angle { wrap_angle(d) } else { d }
+        })
+        .collect()
+}
+
+/// A draw of transitions with their states, actions and changes as f64 columns.
+#[derive(Debug, Clone)]
+pub struct Changes {
+    /// Dataset rows drawn, ascending.
+    pub rows: Vec<usize>,
+    /// s(t) per row, `[row][state]`.
+    pub states: Vec<Vec<f64>>,
+    /// a(t) per row, `[row][action]`.
+    pub actions: Vec<Vec<f64>>,
+    /// Δs per row, `[row][state]`.
+    pub deltas: Vec<Vec<f64>>,
+    /// Per feature: whether it is an Euler angle.
+    pub angular: Vec<bool>,
+    /// Per feature: the f32 resolution of its recorded values (2⁻²³ × RMS of s_k(t+1)),
+    /// the finest change the data can show.
+    pub resolution: Vec<f64>,
+}
+
+impl Changes {
+    /// At most `max_rows` of the transitions `candidates` of `data`, drawn uniformly with
+    /// `seed` (all of them when there are fewer).
+    pub fn draw(data: &Dataset, candidates: &[usize], max_rows: usize, seed: u64) -> Self {
+        let mut rows: Vec<usize> = if candidates.len() <= max_rows {
+            candidates.to_vec()
+        } else {
+            let mut rng = StdRng::seed_from_u64(seed);
+            let picked = sample(&mut rng, candidates.len(), max_rows);
+            picked.into_iter().map(|i| candidates[i]).collect()
+        };
+        rows.sort_unstable();
+        let to_f64 = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<f64>>();
+        let states = rows.iter().map(|&r| to_f64(data.state(r))).collect();
+        let actions = rows.iter().map(|&r| to_f64(data.action(r))).collect();
+        let deltas = rows.iter().map(|&r| one_step_changes(data, r)).collect();
+        let n = rows.len().max(1) as f64;
+        let resolution = (0..data.state_width())
+            .map(|k| {
+                let ms = rows
+                    .iter()
+                    .map(|&r| (data.next_state(r)[k] as f64).powi(2))
+                    .sum::<f64>()
+                    / n;
+                ms.sqrt() * f32::EPSILON as f64
+            })
+            .collect();
+        Self {
+            angular: angular_features(data.experiment),
+            rows,
+            states,
+            actions,
+            deltas,
+            resolution,
+        }
+    }
+
+    /// Whether feature `k` changed in any drawn transition.
+    pub fn ever_changes(&self, k: usize) -> bool {
+        self.deltas.iter().any(|d| d[k] != 0.0)
+    }
+}

@@ -1,0 +1,428 @@
+//! Granger-style tests of every action on every one-step change: least squares of Δs_k on
+//! the design, and a test that the coefficients of a_j's block are all zero.
+
+use causal_arm_dataset::{Dataset, action_names, state_names};
+use causal_arm_scoring::{Decision, EdgeClaims, Verdict};
+use nalgebra::{DMatrix, DVector};
+use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
+
+use crate::design::{Design, Terms};
+use crate::{Changes, DiscoveryError, Result};
+
+/// How a test is run and decided.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GrangerSettings {
+    /// The terms of each action's block.
+    pub terms: Terms,
+    /// Heteroscedasticity-robust (HC1) Wald test instead of the classical F test: the
+    /// cube's change is 0 except while held, so its noise is anything but constant.
+    pub robust: bool,
+    /// Family-wise error rate over all action × state pairs (Bonferroni).
+    pub alpha: f64,
+    /// Transitions used at most (a seeded uniform draw beyond that).
+    pub max_rows: usize,
+    /// Seed of the draw.
+    pub seed: u64,
+    /// "Does not" when the change is predicted to within this many times its f32
+    /// resolution without a_j (the three-valued test only).
+    pub resolution_margin: f64,
+}
+
+impl GrangerSettings {
+    /// A standard anchor: the classical F test of `terms`, Bonferroni at 5 %.
+    pub fn anchor(terms: Terms) -> Self {
+        Self {
+            terms,
+            robust: false,
+            alpha: 0.05,
+            max_rows: 50_000,
+            seed: 0,
+            resolution_margin: 0.0,
+        }
+    }
+
+    /// The data half of the product's verdicts: action × state terms and squared actions,
+    /// the robust Wald test at a family-wise 1 %, "does not" within 4 × the resolution.
+    pub fn data_test() -> Self {
+        Self {
+            terms: Terms::Full,
+            robust: true,
+            alpha: 0.01,
+            max_rows: 50_000,
+            seed: 0,
+            resolution_margin: 4.0,
+        }
+    }
+
+    fn check(&self) -> Result<()> {
+        if !(self.alpha > 0.0 && self.alpha < 1.0) {
+            return Err(DiscoveryError::Options(format!(
+                "the test's family-wise error rate must lie in (0, 1), got {}",
+                self.alpha
+            )));
+        }
+        if !(self.resolution_margin.is_finite() && self.resolution_margin >= 0.0) {
+            return Err(DiscoveryError::Options(format!(
+                "the resolution margin must be a non-negative number, got {}",
+                self.resolution_margin
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The test of one action on one feature's change.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PairTest {
+    /// Wald χ² (robust) or F statistic of the block.
+    pub statistic: f64,
+    /// Columns in the block (0: the action never varied).
+    pub dof: usize,
+    /// Tail probability of the statistic under "no effect".
+    pub p_value: f64,
+    /// The statistic as a standard-normal deviate (Wilson–Hilferty), comparable across
+    /// blocks of different sizes: the raw score for rankings.
+    pub z: f64,
+    /// Std over the rows of the block's fitted contribution to Δs_k (feature units).
+    pub effect: f64,
+    /// RMS residual of Δs_k fitted without a_j's block (feature units).
+    pub rms_without: f64,
+}
+
+/// Every pair's test on one draw of the data, and what the data shows of each feature.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct DataTest {
+    /// How it was run.
+    pub settings: GrangerSettings,
+    /// Action names (rows).
+    pub action_names: Vec<String>,
+    /// State feature names (columns).
+    pub state_names: Vec<String>,
+    /// Transitions used.
+    pub rows: usize,
+    /// Transitions in the data.
+    pub data_rows: usize,
+    /// `[action][state]`.
+    pub pairs: Vec<Vec<PairTest>>,
+    /// Per feature: the f32 resolution of its values.
+    pub resolution: Vec<f64>,
+    /// Per feature: whether it changed in any transition used.
+    pub changes: Vec<bool>,
+    /// Wall time, s.
+    pub seconds: f64,
+}
+
+impl DataTest {
+    /// Runs every pair's test on all of `data`.
+    pub fn run(data: &Dataset, settings: &GrangerSettings) -> Result<Self> {
+        let all: Vec<usize> = (0..data.rows()).collect();
+        Self::run_rows(data, &all, settings)
+    }
+
+    /// Runs every pair's test on the transitions `rows` of `data` (one context's).
+    pub fn run_rows(data: &Dataset, rows: &[usize], settings: &GrangerSettings) -> Result<Self> {
+        settings.check()?;
+        let started = std::time::Instant::now();
+        let changes = Changes::draw(data, rows, settings.max_rows, settings.seed);
+        let design = Design::build(&changes, settings.terms);
+        let (n, p) = design.x.shape();
+        if n < 2 * p {
+            return Err(DiscoveryError::Options(format!(
+                "the data test needs at least {} transitions for its {p} columns, it has {n}",
+                2 * p
+            )));
+        }
+        let ns = data.state_width();
+        let y = DMatrix::from_fn(n, ns, |r, k| changes.deltas[r][k]);
+        let pairs = fit_and_test(&design, &y, settings.robust);
+        Ok(Self {
+            settings: settings.clone(),
+            action_names: action_names(data.experiment),
+            state_names: state_names(data.experiment),
+            rows: n,
+            data_rows: rows.len(),
+            pairs,
+            changes: (0..ns).map(|k| changes.ever_changes(k)).collect(),
+            resolution: changes.resolution,
+            seconds: started.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The per-pair significance level after the Bonferroni correction.
+    pub fn level(&self) -> f64 {
+        self.settings.alpha / (self.action_names.len() * self.state_names.len()).max(1) as f64
+    }
+
+    /// Two-valued claims of the standard anchor: drives where p is below the corrected level.
+    pub fn anchor_claims(&self, method: &str) -> EdgeClaims {
+        let level = self.level();
+        let mut claims = self.claims_frame(method);
+        claims.rule = format!(
+            "drives when the {} test of a_j's block ({}) on the one-step change has p < {:.1e} (family-wise {} with Bonferroni over {} pairs), {} transitions",
+            if self.settings.robust {
+                "robust Wald"
+            } else {
+                "F"
+            },
+            terms_words(self.settings.terms),
+            level,
+            self.settings.alpha,
+            self.action_names.len() * self.state_names.len(),
+            self.rows
+        );
+        for (a, row) in self.pairs.iter().enumerate() {
+            for (k, t) in row.iter().enumerate() {
+                claims.drives[a][k] = self.changes[k] && t.dof > 0 && t.p_value < level;
+            }
+        }
+        claims
+    }
+
+    /// Three-valued claims: drives where the test decides, does not where the feature
+    /// never changes or is predicted to its resolution without the action, else undecided.
+    pub fn claims(&self, method: &str) -> EdgeClaims {
+        let mut claims = self.claims_frame(method);
+        claims.rule = format!(
+            "data: drives when the {} test of a_j's block ({}) has p < {:.1e} (family-wise {}, Bonferroni); does not when s_k never changes or is predicted without a_j to within {} x its f32 resolution; else undecided ({} of {} transitions)",
+            if self.settings.robust {
+                "robust Wald"
+            } else {
+                "F"
+            },
+            terms_words(self.settings.terms),
+            self.level(),
+            self.settings.alpha,
+            self.settings.resolution_margin,
+            self.rows,
+            self.data_rows
+        );
+        let decisions: Vec<Vec<Decision>> = (0..self.action_names.len())
+            .map(|a| {
+                (0..self.state_names.len())
+                    .map(|k| self.decide(a, k))
+                    .collect()
+            })
+            .collect();
+        for (a, row) in decisions.iter().enumerate() {
+            for (k, d) in row.iter().enumerate() {
+                claims.drives[a][k] = d.verdict == Verdict::Drives;
+            }
+        }
+        claims.decisions = Some(decisions);
+        claims
+    }
+
+    /// The data's verdict on one pair, with its reason.
+    pub fn decide(&self, a: usize, k: usize) -> Decision {
+        let t = &self.pairs[a][k];
+        let (action, state) = (&self.action_names[a], &self.state_names[k]);
+        let bound = self.settings.resolution_margin * self.resolution[k];
+        let decision = |verdict, reason: String, to_decide: &str| Decision {
+            verdict,
+            source: if verdict == Verdict::Undecided {
+                ""
+            } else {
+                "data"
+            }
+            .into(),
+            reason,
+            to_decide: to_decide.into(),
+        };
+        if !self.changes[k] {
+            return decision(
+                Verdict::DoesNot,
+                format!(
+                    "{state} never changed in {} transitions while {action} varied",
+                    self.rows
+                ),
+                "",
+            );
+        }
+        if t.dof == 0 {
+            return decision(
+                Verdict::Undecided,
+                format!("{action} never varied in the data"),
+                "babbling that varies this action",
+            );
+        }
+        if t.rms_without <= bound {
+            return decision(
+                Verdict::DoesNot,
+                format!(
+                    "without {action} the change of {state} is predicted to {:.1e} RMS, within {} x its f32 resolution {:.1e}",
+                    t.rms_without, self.settings.resolution_margin, self.resolution[k]
+                ),
+                "",
+            );
+        }
+        if t.p_value < self.level() {
+            return decision(
+                Verdict::Drives,
+                format!(
+                    "p = {:.1e} < {:.1e} ({} columns, z = {:.1}); effect std {:.2e}",
+                    t.p_value,
+                    self.level(),
+                    t.dof,
+                    t.z,
+                    t.effect
+                ),
+                "",
+            );
+        }
+        decision(
+            Verdict::Undecided,
+            format!(
+                "not significant in the data (p = {:.2}, effect std {:.1e} vs residual {:.1e})",
+                t.p_value, t.effect, t.rms_without
+            ),
+            "more transitions (the data test), or a forward model whose error on this feature is below the effect",
+        )
+    }
+
+    fn claims_frame(&self, method: &str) -> EdgeClaims {
+        let (na, ns) = (self.action_names.len(), self.state_names.len());
+        EdgeClaims {
+            method: method.to_owned(),
+            rule: String::new(),
+            context: causal_arm_dataset::Context::ALL.to_owned(),
+            horizon: 1,
+            observations: self.rows,
+            action_names: self.action_names.clone(),
+            state_names: self.state_names.clone(),
+            score: self
+                .pairs
+                .iter()
+                .map(|row| row.iter().map(|t| t.z).collect())
+                .collect(),
+            interval: None,
+            drives: vec![vec![false; ns]; na],
+            decisions: None,
+        }
+    }
+}
+
+/// The standard anchor's two-valued claims: the classical F test of `terms`, Bonferroni at
+/// 5 %, named `method`.
+pub fn granger_claims(data: &Dataset, terms: Terms, method: &str) -> Result<EdgeClaims> {
+    Ok(DataTest::run(data, &GrangerSettings::anchor(terms))?.anchor_claims(method))
+}
+
+fn terms_words(terms: Terms) -> &'static str {
+    match terms {
+        Terms::Linear => "a_j alone, the state as control",
+        Terms::Interaction => "a_j and a_j x s, the state as control",
+        Terms::Full => "a_j, a_j^2 and a_j x s, the state as control",
+    }
+}
+
+/// Least squares of every column of `y` on the design, then every pair's block test.
+fn fit_and_test(design: &Design, y: &DMatrix<f64>, robust: bool) -> Vec<Vec<PairTest>> {
+    let x = &design.x;
+    let (n, p) = x.shape();
+    let gram = x.tr_mul(x);
+    // The design's columns are independent (see `Design::build`), so the Gram matrix is
+    // positive definite; the pseudo-inverse is only a guard against rounding.
+    let inverse = match gram.clone().cholesky() {
+        Some(c) => c.inverse(),
+        None => {
+            let tolerance = 1e-10 * gram.diagonal().max();
+            gram.pseudo_inverse(tolerance)
+                .expect("a non-negative tolerance is accepted")
+        }
+    };
+    let beta = &inverse * x.tr_mul(y);
+    let residual = y - x * &beta;
+    let rss: Vec<f64> = residual.column_iter().map(|e| e.norm_squared()).collect();
+    // Rows of X (XᵀX)⁻¹: the sandwich's bread applied to each row, for the robust test.
+    let bread = robust.then(|| x * &inverse);
+    let dof_resid = (n - p).max(1) as f64;
+    design
+        .blocks
+        .iter()
+        .map(|&(start, m)| {
+            (0..y.ncols())
+                .map(|k| {
+                    if m == 0 {
+                        return PairTest::untested(rss[k], n);
+                    }
+                    let b = beta.view((start, k), (m, 1)).into_owned();
+                    let cov_unscaled = inverse.view((start, start), (m, m)).into_owned();
+                    let drop_rss = quadratic_form(&b, &cov_unscaled);
+                    let (statistic, p_value, z) = match &bread {
+                        Some(bread) => {
+                            let h = bread.columns(start, m);
+                            let e = residual.column(k);
+                            let g = DMatrix::from_fn(n, m, |r, c| h[(r, c)] * e[r]);
+                            let v = g.tr_mul(&g) * (n as f64 / dof_resid);
+                            let w = quadratic_form(&b, &v);
+                            (w, chi2_tail(w, m), wilson_hilferty(w, m))
+                        }
+                        None => {
+                            let f =
+                                drop_rss / m as f64 / (rss[k] / dof_resid).max(f64::MIN_POSITIVE);
+                            (f, f_tail(f, m, dof_resid), wilson_hilferty(f * m as f64, m))
+                        }
+                    };
+                    let fitted = x.columns(start, m) * &b;
+                    PairTest {
+                        statistic,
+                        dof: m,
+                        p_value,
+                        z,
+                        effect: std_dev(fitted.as_slice()),
+                        rms_without: ((rss[k] + drop_rss.max(0.0)) / n as f64).sqrt(),
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+impl PairTest {
+    /// The pair of an action that never varied: nothing tested.
+    fn untested(rss: f64, n: usize) -> Self {
+        Self {
+            statistic: 0.0,
+            dof: 0,
+            p_value: 1.0,
+            z: f64::NEG_INFINITY.max(-40.0),
+            effect: 0.0,
+            rms_without: (rss / n.max(1) as f64).sqrt(),
+        }
+    }
+}
+
+/// bᵀ M⁻¹ b with M's pseudo-inverse (a block may be rank-deficient); 0 for a zero M.
+fn quadratic_form(b: &DMatrix<f64>, m: &DMatrix<f64>) -> f64 {
+    let scale = m.diagonal().iter().fold(0.0f64, |a, &v| a.max(v.abs()));
+    if scale == 0.0 || !scale.is_finite() {
+        return 0.0;
+    }
+    let Ok(inv) = m.clone().pseudo_inverse(1e-12 * scale) else {
+        return 0.0;
+    };
+    let v: DVector<f64> = b.column(0).into_owned();
+    v.dot(&(inv * &v))
+}
+
+fn chi2_tail(w: f64, dof: usize) -> f64 {
+    ChiSquared::new(dof as f64).map_or(1.0, |d| d.sf(w.max(0.0)))
+}
+
+fn f_tail(f: f64, dof: usize, dof_resid: f64) -> f64 {
+    FisherSnedecor::new(dof as f64, dof_resid).map_or(1.0, |d| d.sf(f.max(0.0)))
+}
+
+/// A χ²(dof) statistic as a standard-normal deviate (Wilson–Hilferty), finite where the
+/// tail probability underflows, so rankings keep their order among very strong edges.
+fn wilson_hilferty(w: f64, dof: usize) -> f64 {
+    let k = dof as f64;
+    let c = 2.0 / (9.0 * k);
+    (((w.max(0.0) / k).cbrt() - (1.0 - c)) / c.sqrt()).max(-40.0)
+}
+
+fn std_dev(values: &[f64]) -> f64 {
+    let n = values.len().max(1) as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt()
+}

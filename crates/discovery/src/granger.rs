@@ -4,7 +4,7 @@
 use causal_arm_dataset::{Dataset, action_names, state_names};
 use causal_arm_scoring::{Decision, EdgeClaims, Verdict};
 use nalgebra::{DMatrix, DVector};
-use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
+use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor, Normal};
 
 use crate::design::{Design, Terms};
 use crate::{Changes, DiscoveryError, Result};
@@ -151,6 +151,12 @@ impl DataTest {
     /// The per-pair significance level after the Bonferroni correction.
     pub fn level(&self) -> f64 {
         self.settings.alpha / (self.action_names.len() * self.state_names.len()).max(1) as f64
+    }
+
+    /// The standard-normal deviate a pair's `z` must reach to be significant at
+    /// [`Self::level`]: the unit of the test's evidence in a combined score.
+    pub fn critical_z(&self) -> f64 {
+        Normal::standard().inverse_cdf(1.0 - self.level())
     }
 
     /// Two-valued claims of the standard anchor: drives where p is below the corrected level.

@@ -9,6 +9,7 @@
 
 #![warn(missing_docs)]
 
+pub mod decide;
 pub mod influence;
 pub mod multistep;
 pub mod output;

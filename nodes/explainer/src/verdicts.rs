@@ -1,27 +1,43 @@
-//! The default causal claims of a SHAP run, assembled in one place so that `causal-arm
-//! explain` and the explainer node decide alike: SHAP by today's threshold rule (in any
-//! context) united with CAI influence judged against the model's error floor, named
-//! `<method>+cai`. Every claim set carries a 95 % bootstrap interval per edge, so a report
-//! can say how sure each verdict is, not only what it is.
+//! The causal claims of a SHAP run, assembled in one place so that `causal-arm explain` and
+//! the explainer node decide alike. The default, `<method>+cai+data`, is three-valued
+//! ([`crate::decide`]): the data's own test first, the model's calibrated evidence where the
+//! data is undecided. Beside it: SHAP by today's threshold rule (in any context) united with
+//! CAI influence judged against the model's error floor (`<method>+cai`, the verdicts of
+//! earlier releases), each part alone, and the data test alone (`data`).
 
 use causal_arm_dataset::{Context, ContextReader, Dataset};
+use causal_arm_discovery::{DataTest, GrangerSettings};
 use causal_arm_scoring::EdgeClaims;
 
+use crate::decide::{ModelEvidence, default_claims};
 use crate::influence::{
     Effects, ErrorFloors, InfluenceSettings, Rule, UnionPart, bootstrap_interval, cai_effects,
-    claims_by_context, threshold_claims, union_claims,
+    claims_by_context, error_pool, mean_change_error, threshold_claims, union_claims,
 };
 use crate::{ExplainError, Explainer, Explanation, Result};
 
-/// Name of the default claims of a SHAP run by `method` (`kernel+cai`, `deep+cai`).
+/// Name of the default claims of a SHAP run by `method` (`kernel+cai+data`, …).
 pub fn default_method(method: crate::Method) -> String {
+    format!("{method}+cai+data")
+}
+
+/// Name of the union of SHAP by today's rule and CAI (`kernel+cai`, `deep+cai`): the
+/// verdicts of earlier releases, kept beside the default for comparison.
+pub fn union_method(method: crate::Method) -> String {
     format!("{method}+cai")
 }
 
-/// The claim sets of a SHAP run, the default first: SHAP by today's rule (every context)
-/// united with CAI by its error floor, per context (`<method>+cai`; in context `all`, SHAP of
-/// any context counts); then SHAP by today's rule, SHAP against the model's error, and CAI
-/// alone. `explanation` must have been made on `data` (its observations are rows of it).
+/// The data's own test on `data` (the default settings), as the explainer runs it.
+pub fn data_test(data: &Dataset) -> Result<DataTest> {
+    DataTest::run(data, &GrangerSettings::data_test())
+        .map_err(|e| ExplainError::Options(format!("the data test: {e}")))
+}
+
+/// The claim sets of a SHAP run, the default (`<method>+cai+data`, context `all`, three
+/// verdicts) first; then SHAP by today's rule (every context) united with CAI by its error
+/// floor, per context (`<method>+cai`; in context `all`, SHAP of any context counts); SHAP
+/// by today's rule, SHAP against the model's error, CAI alone, and the data test alone.
+/// `explanation` must have been made on `data` (its observations are rows of it).
 pub fn shap_and_cai_claims(
     explainer: &Explainer,
     data: &Dataset,
@@ -37,13 +53,25 @@ pub fn shap_and_cai_claims(
     let shap_err = claims_by_context(explainer, data, &effects, settings, rule);
     let cai_effects = cai_effects(explainer, data, settings)?;
     let cai = claims_by_context(explainer, data, &cai_effects, settings, rule);
-    let name = default_method(explanation.settings.method);
+    let data_test = data_test(data)?;
+    let evidence = ModelEvidence {
+        parts: vec![&cai[0], &shap_err[0]],
+        error: floors.per_context[0].clone(),
+        mean_change_error: mean_change_error(data, &error_pool(data, settings)),
+    };
+    let default = default_claims(
+        &default_method(explanation.settings.method),
+        &data_test,
+        &evidence,
+        settings.kappa,
+    );
+    let name = union_method(explanation.settings.method);
     let part = |c, threshold, lower_bound| UnionPart {
         claims: c,
         threshold,
         lower_bound,
     };
-    let mut out = Vec::new();
+    let mut out = vec![default];
     for (context, cai_context) in shap.iter().zip(&cai) {
         let mut parts: Vec<UnionPart> = if context.context == Context::ALL {
             shap.iter().map(|c| part(c, threshold, false)).collect()
@@ -67,6 +95,7 @@ pub fn shap_and_cai_claims(
     out.extend(shap);
     out.extend(shap_err);
     out.extend(cai);
+    out.push(data_test.claims("data"));
     Ok(out)
 }
 

@@ -109,8 +109,7 @@ impl ErrorFloors {
         data: &Dataset,
         settings: &InfluenceSettings,
     ) -> Result<Self> {
-        let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
-        let pool = sample(&mut rng, data.rows(), settings.error_rows.min(data.rows())).into_vec();
+        let pool = error_pool(data, settings);
         let reader = ContextReader::new(data.experiment);
         let scale = crate::change_scale(data);
         let per_context = Context::of(data.experiment)
@@ -127,6 +126,29 @@ impl ErrorFloors {
             .collect::<Result<_>>()?;
         Ok(Self { per_context })
     }
+}
+
+/// The seeded rows a model's error is measured on (at most `settings.error_rows`).
+pub fn error_pool(data: &Dataset, settings: &InfluenceSettings) -> Vec<usize> {
+    let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
+    sample(&mut rng, data.rows(), settings.error_rows.min(data.rows())).into_vec()
+}
+
+/// Per feature, the mean absolute error of predicting each transition's change by the
+/// mean change over `rows` (Euler angles wrapped): what a model that learned nothing about
+/// the state and action achieves, the yardstick of [`crate::decide::MAX_ERROR_RATIO`].
+pub fn mean_change_error(data: &Dataset, rows: &[usize]) -> Vec<f64> {
+    let changes: Vec<Vec<f64>> = rows
+        .iter()
+        .map(|&r| causal_arm_discovery::one_step_changes(data, r))
+        .collect();
+    let n = rows.len().max(1) as f64;
+    (0..data.state_width())
+        .map(|k| {
+            let mean = changes.iter().map(|c| c[k]).sum::<f64>() / n;
+            changes.iter().map(|c| (c[k] - mean).abs()).sum::<f64>() / n
+        })
+        .collect()
 }
 
 /// How per-observation effects become verdicts.

@@ -1,0 +1,185 @@
+//! The product's default verdicts: drives, does not or undecided per edge, from the data's
+//! own test and the forward model's calibrated evidence, never from a ground truth.
+//!
+//! - The data decides first ([`causal_arm_discovery::DataTest`]): motor babbling is a
+//!   randomized experiment, so a significant robust test of a_j on Δs_k is evidence of an
+//!   edge, and a change predicted to the recording's resolution without a_j is evidence of
+//!   none.
+//! - Where the data leaves an edge undecided, the model may decide "drives": CAI or SHAP
+//!   above κ × the model's error on the feature (the `/err` rules), but only on features
+//!   the model has learned, whose error is well below predicting the mean change
+//!   ([`MAX_ERROR_RATIO`]). An untrained or random model has learned nothing and decides
+//!   nothing.
+//! - Otherwise "undecided", with why and what would decide it.
+
+use causal_arm_discovery::DataTest;
+use causal_arm_scoring::{Decision, EdgeClaims, Verdict};
+
+/// A model's evidence on a feature counts only where its error on the feature's next
+/// value is below this share of the error of predicting the mean one-step change. An
+/// untrained network's ratio is near 1 or above; the quick-profile forward models reach
+/// 0.01–0.3 on the features they have learned.
+pub const MAX_ERROR_RATIO: f64 = 0.5;
+
+/// What the forward model contributes to the default: its claims by the calibrated rules
+/// (context `all`) and, per feature, its error beside predicting the mean change.
+pub struct ModelEvidence<'a> {
+    /// Claim sets by the error-ratio rule (`cai/err`, `kernel/err`, …), context `all`.
+    pub parts: Vec<&'a EdgeClaims>,
+    /// Per feature: the model's MAE on s_k(t+1).
+    pub error: Vec<f64>,
+    /// Per feature: MAE of predicting the mean one-step change.
+    pub mean_change_error: Vec<f64>,
+}
+
+impl ModelEvidence<'_> {
+    /// The model's error over the mean-change predictor's on feature `k` (∞ where the
+    /// feature never changes).
+    pub fn error_ratio(&self, k: usize) -> f64 {
+        let baseline = self.mean_change_error[k];
+        if baseline > 0.0 {
+            self.error[k] / baseline
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    fn learned(&self, k: usize) -> bool {
+        self.error_ratio(k) < MAX_ERROR_RATIO
+    }
+
+    /// The strongest calibrated part claiming (a, k), by score.
+    fn claim(&self, a: usize, k: usize) -> Option<&EdgeClaims> {
+        self.parts
+            .iter()
+            .copied()
+            .filter(|p| p.drives[a][k])
+            .max_by(|p, q| p.score[a][k].total_cmp(&q.score[a][k]))
+    }
+}
+
+/// The default claims named `method`: the data's verdicts, with model "drives" where the
+/// data is undecided and the model has learned the feature. Score: evidence over its
+/// threshold (the data's z over the critical z, or the model part's score over κ), ≥ 1
+/// exactly where claimed; −1 where denied. Interval: the deciding evidence's 95 % interval
+/// in the same unit (z ± 1.96 for the data, the model part's bootstrap interval).
+pub fn default_claims(
+    method: &str,
+    data: &DataTest,
+    model: &ModelEvidence,
+    kappa: f64,
+) -> EdgeClaims {
+    let mut claims = data.claims(method);
+    let z_crit = data.critical_z();
+    let (na, ns) = (data.action_names.len(), data.state_names.len());
+    let mut decisions = Vec::with_capacity(na);
+    let mut interval = vec![vec![[0.0; 2]; ns]; na];
+    for a in 0..na {
+        let mut row = Vec::with_capacity(ns);
+        for k in 0..ns {
+            let data_decision = data.decide(a, k);
+            let data_score = data.pairs[a][k].z / z_crit;
+            let model_score = model
+                .claim(a, k)
+                .filter(|_| model.learned(k))
+                .map(|p| p.score[a][k] / kappa);
+            let (decision, score) = combine(data_decision, data_score, model, model_score, (a, k));
+            claims.score[a][k] = score;
+            claims.drives[a][k] = decision.verdict == Verdict::Drives;
+            interval[a][k] = match (decision.source.as_str(), model.claim(a, k)) {
+                ("model", Some(part)) => part
+                    .interval
+                    .as_ref()
+                    .map_or([score; 2], |i| i[a][k].map(|v| v / kappa)),
+                _ if decision.verdict == Verdict::DoesNot => [score; 2],
+                _ => [score - 1.96 / z_crit, score + 1.96 / z_crit],
+            };
+            row.push(decision);
+        }
+        decisions.push(row);
+    }
+    claims.decisions = Some(decisions);
+    claims.interval = Some(interval);
+    claims.rule = format!(
+        "drives where the data test does, or, where it is undecided, a calibrated model rule ({}) does on a feature the model has learned (error < {MAX_ERROR_RATIO} x that of predicting the mean change); does not where the data shows none; else undecided. {}",
+        model
+            .parts
+            .iter()
+            .map(|p| p.method.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        data.claims("data").rule
+    );
+    claims
+}
+
+/// One edge's verdict from the data's decision and the model's claim (its score over κ,
+/// where it claims and has learned the feature).
+fn combine(
+    data: Decision,
+    data_score: f64,
+    model: &ModelEvidence,
+    model_score: Option<f64>,
+    (a, k): (usize, usize),
+) -> (Decision, f64) {
+    match (data.verdict, model_score) {
+        (Verdict::Drives, Some(m)) => (
+            Decision {
+                source: "data+model".into(),
+                reason: format!(
+                    "{}; the model agrees ({:.1} x its threshold)",
+                    data.reason, m
+                ),
+                ..data
+            },
+            data_score.max(m),
+        ),
+        (Verdict::Drives, None) => (data, data_score),
+        (Verdict::DoesNot, _) => (data, -1.0),
+        (Verdict::Undecided, Some(m)) => {
+            let part = model.claim(a, k).map_or("", |p| p.method.as_str());
+            let reason = format!(
+                "{part}: effect {m:.1} x the model's threshold (error ratio {:.2} on this feature); the data alone: {}",
+                model.error_ratio(k),
+                data.reason
+            );
+            let decision = Decision {
+                verdict: Verdict::Drives,
+                source: "model".into(),
+                reason,
+                to_decide: String::new(),
+            };
+            (decision, m)
+        }
+        (Verdict::Undecided, None) => {
+            let (why, to_decide) = undecided_by_model(model, k);
+            let decision = Decision {
+                reason: format!("{}; {why}", data.reason),
+                to_decide: format!("{}; {to_decide}", data.to_decide),
+                ..data
+            };
+            (decision, data_score.min(0.999))
+        }
+    }
+}
+
+/// Why the model did not decide an undecided edge, and what would let it.
+fn undecided_by_model(model: &ModelEvidence, k: usize) -> (String, &'static str) {
+    let ratio = model.error_ratio(k);
+    if ratio >= MAX_ERROR_RATIO {
+        (
+            format!(
+                "the model has not learned this feature (its error is {ratio:.2} x that of predicting the mean change)"
+            ),
+            "more training epochs or steps for the forward model",
+        )
+    } else {
+        (
+            format!(
+                "the model's evidence is below its threshold (error {:.1e} on this feature)",
+                model.error[k]
+            ),
+            "a forward model with a smaller error on this feature",
+        )
+    }
+}

@@ -47,7 +47,11 @@ echo "==> causal ground truth: the simulator revisits 500 states of each bag and
 $BIN intervene exp1 --bag bags/quick_exp1 --states 500 --out models/quick_exp1/truth
 $BIN intervene exp2 --bag bags/quick_exp2 --states 500 --horizon 3 --out models/quick_exp2/truth
 
-echo "==> knowledge extraction: Deep SHAP and Kernel SHAP, each alone and united with CAI influence, scored against that truth"
+echo "==> causal discovery straight from the data (no model): the three-valued data test beside linear Granger tests, scored against that truth"
+$BIN discover --bag bags/quick_exp1 --truth models/quick_exp1/truth --out models/quick_exp1/discover
+$BIN discover --bag bags/quick_exp2 --truth models/quick_exp2/truth --out models/quick_exp2/discover
+
+echo "==> knowledge extraction: Deep SHAP and Kernel SHAP with CAI; the default verdicts (drives / does not / undecided: the data test first, the model's calibrated evidence where it is undecided), scored against that truth"
 $BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method deep --truth models/quick_exp2/truth
 $BIN explain --model models/quick_exp2 --bag bags/quick_exp2 --method kernel --no-pair-plots --truth models/quick_exp2/truth
 $BIN explain --model models/quick_exp1 --bag bags/quick_exp1 --method kernel --no-pair-plots --truth models/quick_exp1/truth
@@ -72,4 +76,5 @@ echo "    mental simulation:        models/quick_exp1/mental_simulation.png"
 echo "    SHAP heat map and PDPs:   models/quick_exp2/explain-deep/{heatmap,pdp_grid}.png, pdp/"
 echo "    relevance report:         models/quick_exp2/explain-{deep,kernel}/relevance.{json,csv}"
 echo "    causal truth + scores:    models/quick_exp{1,2}/truth/truth.{json,csv,heatmap.png}, models/quick_exp2/explain-*/scores.json"
+echo "    data-level verdicts:      models/quick_exp{1,2}/discover/{claims,scores}.json"
 echo "    multi-step edges:         models/quick_exp2/explain-cai-h3/multistep.json, multistep_*.png"

@@ -25,8 +25,8 @@ NODE_SAMPLES = 40
 
 @dataclass
 class RelevanceV2(IdlStruct, typename="causal_arm_msgs::msg::dds_::Relevance_"):
-    """msg/Relevance.msg with the appended calibrated verdicts (ros_idl.Relevance is the
-    layout before them: an old reader)."""
+    """msg/Relevance.msg with the appended calibrated and three-valued verdicts
+    (ros_idl.Relevance is the layout before them: an old reader)."""
 
     header: idl.Header = field(default_factory=idl.Header)
     experiment: str = ""
@@ -46,6 +46,9 @@ class RelevanceV2(IdlStruct, typename="causal_arm_msgs::msg::dds_::Relevance_"):
     interval_lower: t.sequence[t.float64] = field(default_factory=list)
     interval_upper: t.sequence[t.float64] = field(default_factory=list)
     decision_rule: str = ""
+    verdict: t.sequence[str] = field(default_factory=list)
+    reason: t.sequence[str] = field(default_factory=list)
+    to_decide: t.sequence[str] = field(default_factory=list)
 
 
 @pytest.fixture(scope="module")
@@ -79,10 +82,12 @@ def test_cli_writes_every_file_and_the_colour_verdict(exp2):
         assert verdicts[f"theta{j}"]["strongest_action"] == f"a{j}"
     csv = (out / "relevance.csv").read_text().splitlines()
     assert csv[0].startswith("state,verdict,score")
-    # The verdicts are the run's default claims, SHAP united with CAI, as claims.json's first.
-    assert report["decision_method"] == "deep+cai"
+    # The verdicts are the run's default claims (the data test, then the model's calibrated
+    # evidence), as claims.json's first, three-valued.
+    assert report["decision_method"] == "deep+cai+data"
     claims = json.loads((out / "claims.json").read_text())
-    assert claims[0]["method"] == "deep+cai" and claims[0]["context"] == "all"
+    assert claims[0]["method"] == "deep+cai+data" and claims[0]["context"] == "all"
+    assert report["decisions"] == claims[0]["decisions"]
     assert report["drives"] == claims[0]["drives"] and report["interval"] == claims[0]["interval"]
     assert len(csv) == 24
 
@@ -220,7 +225,12 @@ def test_relevance_report_is_latched_calibrated_and_equals_the_cli_report(exp2, 
     # Same seed, data and settings as the CLI run: the same numbers.
     np.testing.assert_allclose(np.array(msg.mean_abs_shap).reshape(8, 23), np.array(cli["mean_abs_shap"]),
                                rtol=1e-9, atol=1e-15)
-    assert msg.decision_method == cli["decision_method"] == "kernel+cai"
+    assert msg.decision_method == cli["decision_method"] == "kernel+cai+data"
+    decisions = [d for row in cli["decisions"] for d in row]
+    assert list(msg.verdict) == [d["verdict"] for d in decisions]
+    assert list(msg.reason) == [d["reason"] for d in decisions]
+    assert list(msg.to_decide) == [d.get("to_decide", "") for d in decisions]
+    assert set(msg.verdict) <= {"drives", "does-not", "undecided"}
     assert msg.decision_rule == cli["decision_rule"] and "CAI" in msg.decision_rule
     assert list(msg.drives) == [d for row in cli["drives"] for d in row]
     np.testing.assert_allclose(msg.score, np.ravel(cli["decision_score"]), rtol=1e-12)
@@ -231,12 +241,16 @@ def test_relevance_report_is_latched_calibrated_and_equals_the_cli_report(exp2, 
     assert msg.rule == cli["rule"] and "one-step change" in msg.rule and msg.threshold == cli["threshold"]
 
     drives = check_verdicts(msg)
-    # The calibrated verdicts are more than today's SHAP rule over all observations (which
-    # the union contains): CAI or SHAP in some context adds edges.
+    # The default verdicts are not today's SHAP rule over all observations: that rule claims
+    # the quick FM's leaks of every joint action into every angle; the data denies them.
     today = np.array(msg.mean_abs_shap).reshape(8, 23) >= msg.threshold * np.array(msg.state_scale)
     today &= np.array(msg.state_scale) > 0
-    assert np.all(drives >= today)
-    assert (drives & ~today).any(), "the calibrated verdicts equal today's rule"
+    assert (today & ~drives).any(), "the default verdicts equal today's rule"
+    theta = [list(msg.state_names).index(f"theta{j}") for j in range(7)]
+    off_diagonal = ~np.eye(7, dtype=bool)
+    assert not (drives[:7][:, theta] & off_diagonal).any(), "an a_i -> theta_j edge claimed"
+    verdict = np.array(msg.verdict).reshape(8, 23)
+    assert np.all(verdict[:7][:, theta][off_diagonal] == "does-not")
     # The checks can fail: a report with a verdict flipped, a colour driven or another action
     # outranking a joint's own on its angle is refused.
     state, action = list(msg.state_names).index, list(msg.action_names).index

@@ -100,6 +100,50 @@ pub fn run(args: &DiscoverArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Arguments of `causal-arm score`.
+#[derive(Debug, Args)]
+pub struct ScoreArgs {
+    /// Claim sets (a JSON list of claims, as `explain`, `discover` and
+    /// tests/bench/causal_anchors.py write them).
+    #[arg(long = "claims", required = true)]
+    claims: Vec<PathBuf>,
+    /// Ground truth directory or truth.json (`causal-arm intervene` output).
+    #[arg(long)]
+    truth: PathBuf,
+    /// Write every score row here as JSON.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// Runs `causal-arm score`: claims made anywhere, scored by the project's scorer.
+pub fn score(args: &ScoreArgs) -> anyhow::Result<()> {
+    let truth = causal_arm_truth::load(&args.truth)?;
+    let mut rows = Vec::new();
+    for path in &args.claims {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read claims {}", path.display()))?;
+        let claims: Vec<EdgeClaims> = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not a JSON list of claim sets", path.display()))?;
+        for c in &claims {
+            rows.extend(
+                score_claims(&truth, c)
+                    .with_context(|| format!("{}: {}", path.display(), c.method))?,
+            );
+        }
+    }
+    print!("{}", score_table(&rows));
+    if let Some(out) = &args.out {
+        let dir = out
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        atomic_write(out, serde_json::to_string_pretty(&rows)?.as_bytes())?;
+        eprintln!("wrote {}", out.display());
+    }
+    Ok(())
+}
+
 /// Per action the features it drives, then the verdict counts: what a user reads first.
 pub(crate) fn print_verdicts(claims: &EdgeClaims, test: &DataTest) {
     println!(

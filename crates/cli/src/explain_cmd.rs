@@ -15,7 +15,7 @@ use causal_arm_explainer::{
     BackgroundKind, Explainer, Explanation, Method, Relevance, Settings, calibrated_relevance,
 };
 use causal_arm_protocol::graph::server_default_text;
-use causal_arm_scoring::EdgeClaims;
+use causal_arm_scoring::{EdgeClaims, Verdict};
 use causal_arm_trainer::load_model;
 use causal_arm_truth::{Truth, check_names, score_claims, score_table};
 use clap::Args;
@@ -346,7 +346,7 @@ fn list_written(written: &Written, out: &Path) {
     }
 }
 
-/// The claims of a SHAP run, the default (`<method>+cai`) first: one piece of code with the
+/// The claims of a SHAP run, the default (`<method>+cai+data`) first: one piece of code with the
 /// explainer node ([`causal_arm_explainer::verdicts::shap_and_cai_claims`]).
 fn shap_and_cai_claims(
     args: &ExplainArgs,
@@ -363,18 +363,26 @@ fn shap_and_cai_claims(
     )?)
 }
 
-/// A heat map of `claims`' verdicts (1 = the action is claimed to drive the feature).
+/// A heat map of `claims`' verdicts: 1 drives, 0 does not, and undecided in a colour of its
+/// own (0.5), so an honest "don't know" never looks like either answer.
 fn draw_verdicts(stem: &Path, claims: &EdgeClaims) -> anyhow::Result<()> {
-    let values: Vec<f64> = claims
-        .drives
-        .iter()
-        .flatten()
-        .map(|&d| if d { 1.0 } else { 0.0 })
+    let (na, ns) = (claims.action_names.len(), claims.state_names.len());
+    let values: Vec<f64> = (0..na * ns)
+        .map(|i| match claims.verdict(i / ns, i % ns) {
+            Verdict::Drives => 1.0,
+            Verdict::Undecided => 0.5,
+            Verdict::DoesNot => 0.0,
+        })
         .collect();
+    let legend = if claims.decisions.is_some() {
+        "1 = drives, 0.5 = undecided, 0 = does not"
+    } else {
+        "1 = claimed"
+    };
     causal_arm_plots::heatmap(
         stem,
         &format!(
-            "{}: which action drives which s(t+1) (1 = claimed)",
+            "{}: which action drives which s(t+1) ({legend})",
             claims.method
         ),
         &claims.action_names,
@@ -465,6 +473,11 @@ fn finish_claims(
                 driven.join(", ")
             );
         }
+        let (drives, does_not, undecided) = headline.verdict_counts();
+        println!(
+            "verdicts ({}): {drives} drives, {does_not} does not, {undecided} undecided",
+            headline.method
+        );
     }
     // The default claims as verdicts_heatmap, every method's all-states claims beside it.
     let all_states = claims

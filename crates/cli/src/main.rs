@@ -69,6 +69,9 @@ enum Command {
     /// Which action drives which state feature, tested straight on a bag's transitions
     /// (no model), beside the standard linear Granger tests.
     Discover(discover_cmd::DiscoverArgs),
+    /// Score causal claims made by any tool against a ground truth (precision, recall, F1,
+    /// AUROC, undecided), by the project's scorer.
+    Score(discover_cmd::ScoreArgs),
     /// Causal ground truth: intervene on every action in states of a bag, record what changes.
     Intervene(intervene_cmd::InterveneArgs),
     /// Call a service with a JSON request (like `ros2 service call`).
@@ -122,6 +125,7 @@ fn main() -> std::process::ExitCode {
         Command::Place(args) => place_cmd::run(args, &ros_args),
         Command::Explain(args) => explain_cmd::run(args),
         Command::Discover(args) => discover_cmd::run(args),
+        Command::Score(args) => discover_cmd::score(args),
         Command::Intervene(args) => intervene_cmd::run(args),
         Command::Service(args) => service_cmd::run(args, &ros_args),
         Command::Security(args) => security_cmd::run(args),

@@ -80,8 +80,9 @@ pub struct PairTest {
     pub dof: usize,
     /// Tail probability of the statistic under "no effect".
     pub p_value: f64,
-    /// The statistic as a standard-normal deviate (Wilson–Hilferty), comparable across
-    /// blocks of different sizes: the raw score for rankings.
+    /// The tail probability as a standard-normal deviate (Wilson–Hilferty's approximation
+    /// where it underflows), comparable across blocks of different sizes: the raw score
+    /// for rankings.
     pub z: f64,
     /// Std over the rows of the block's fitted contribution to Δs_k (feature units).
     pub effect: f64,
@@ -361,12 +362,14 @@ fn fit_and_test(design: &Design, y: &DMatrix<f64>, robust: bool) -> Vec<Vec<Pair
                             let g = DMatrix::from_fn(n, m, |r, c| h[(r, c)] * e[r]);
                             let v = g.tr_mul(&g) * (n as f64 / dof_resid);
                             let w = quadratic_form(&b, &v);
-                            (w, chi2_tail(w, m), wilson_hilferty(w, m))
+                            let p = chi2_tail(w, m);
+                            (w, p, deviate(p, wilson_hilferty(w, m)))
                         }
                         None => {
                             let f =
                                 drop_rss / m as f64 / (rss[k] / dof_resid).max(f64::MIN_POSITIVE);
-                            (f, f_tail(f, m, dof_resid), wilson_hilferty(f * m as f64, m))
+                            let p = f_tail(f, m, dof_resid);
+                            (f, p, deviate(p, wilson_hilferty(f * m as f64, m)))
                         }
                     };
                     let fitted = x.columns(start, m) * &b;
@@ -419,8 +422,20 @@ fn f_tail(f: f64, dof: usize, dof_resid: f64) -> f64 {
     FisherSnedecor::new(dof as f64, dof_resid).map_or(1.0, |d| d.sf(f.max(0.0)))
 }
 
-/// A χ²(dof) statistic as a standard-normal deviate (Wilson–Hilferty), finite where the
-/// tail probability underflows, so rankings keep their order among very strong edges.
+/// The standard-normal deviate of tail probability `p` (so z ≥ the critical z exactly
+/// where p ≤ the level); where p underflows to 0, `approximate` (at least the deviate of the
+/// smallest positive p), so rankings keep their order among very strong edges.
+fn deviate(p: f64, approximate: f64) -> f64 {
+    let normal = Normal::standard();
+    if p >= f64::MIN_POSITIVE {
+        (-normal.inverse_cdf(p)).clamp(-40.0, 40.0)
+    } else {
+        approximate.max(-normal.inverse_cdf(f64::MIN_POSITIVE))
+    }
+}
+
+/// A χ²(dof) statistic as a standard-normal deviate (Wilson–Hilferty): the ranking of
+/// statistics whose tail probability underflows.
 fn wilson_hilferty(w: f64, dof: usize) -> f64 {
     let k = dof as f64;
     let c = 2.0 / (9.0 * k);

@@ -101,7 +101,7 @@ pub fn default_claims(
     claims.decisions = Some(decisions);
     claims.interval = Some(interval);
     claims.rule = format!(
-        "drives where the data test does, or, where it is undecided, a calibrated model rule ({}) does on a feature the model has learned (error < {MAX_ERROR_RATIO} x that of predicting the mean change); does not where the data shows none; else undecided. {}",
+        "drives where the data test does, or, where it is undecided, the forward model's CAI influence or SHAP above kappa x its error ({}) does on a feature the model has learned (error < {MAX_ERROR_RATIO} x that of predicting the mean change); does not where the data shows none; else undecided. {}",
         model
             .parts
             .iter()

@@ -87,7 +87,7 @@ pub struct Relevance {
     pub actions: Vec<ActionVerdict>,
     /// State features no action affects (candidates for removal from the state space).
     pub unaffected: Vec<String>,
-    /// Claim set the verdicts are (`kernel+cai`, the default; `kernel` for today's rule).
+    /// Claim set the verdicts are (`kernel+cai+data`, the default; `kernel` for today's rule).
     pub decision_method: String,
     /// Its decision rule in words.
     pub decision_rule: String,
@@ -98,6 +98,10 @@ pub struct Relevance {
     pub decision_score: Vec<Vec<f64>>,
     /// `[action][state]` 95 % bootstrap interval of the decision score's evidence, same units.
     pub interval: Vec<Vec<[f64; 2]>>,
+    /// `[action][state]` three-valued verdicts with reasons, where the decision method
+    /// makes them (the default does).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub decisions: Option<Vec<Vec<causal_arm_scoring::Decision>>>,
 }
 
 /// Builds the report of `explanation` decided by today's SHAP rule alone with `threshold`
@@ -232,6 +236,7 @@ fn build(explanation: &Explanation, threshold: f64, decision: &EdgeClaims) -> Re
         drives: drives.clone(),
         decision_score: decided.clone(),
         interval,
+        decisions: decision.decisions.clone(),
     }
 }
 

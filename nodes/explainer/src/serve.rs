@@ -2,6 +2,7 @@
 //! against a background from the node's data; malformed requests get a `success = false`
 //! reply saying what is wrong.
 
+use causal_arm_scoring::Decision;
 use std::collections::HashMap;
 use std::sync::Mutex;
 
@@ -182,5 +183,20 @@ pub fn relevance_msg(report: &Relevance, header: Header) -> RelevanceMsg {
         interval_lower: report.interval.iter().flatten().map(|i| i[0]).collect(),
         interval_upper: report.interval.iter().flatten().map(|i| i[1]).collect(),
         decision_rule: report.decision_rule.clone(),
+        verdict: decision_texts(report, |d| d.verdict.name().to_owned()),
+        reason: decision_texts(report, |d| d.reason.clone()),
+        to_decide: decision_texts(report, |d| d.to_decide.clone()),
     }
+}
+
+/// One text per edge, row-major, from the report's three-valued decisions (none when the
+/// report is two-valued).
+fn decision_texts(report: &Relevance, text: impl Fn(&Decision) -> String) -> Vec<String> {
+    report
+        .decisions
+        .iter()
+        .flatten()
+        .flatten()
+        .map(text)
+        .collect()
 }

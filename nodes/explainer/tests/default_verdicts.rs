@@ -168,18 +168,14 @@ fn a_trained_model_learns_its_features_and_the_data_decides_the_rest() {
     let default = &claims[0];
     let decisions = default.decisions.as_ref().unwrap();
     // θ_j moves with a_j: claimed; a_i never moves θ_j (i ≠ j): denied by the data.
-    for a in 0..7 {
-        for k in 0..7 {
+    for (a, row) in decisions.iter().enumerate().take(7) {
+        for (k, d) in row.iter().enumerate().take(7) {
             let expected = if a == k {
                 Verdict::Drives
             } else {
                 Verdict::DoesNot
             };
-            assert_eq!(
-                decisions[a][k].verdict, expected,
-                "a{a} -> theta{k}: {:?}",
-                decisions[a][k]
-            );
+            assert_eq!(d.verdict, expected, "a{a} -> theta{k}: {d:?}");
         }
     }
     // Every undecided edge says what would decide it.

@@ -32,7 +32,7 @@ import sys
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-BIN = ROOT / "target" / "release" / "causal-arm"
+BIN = pathlib.Path(os.environ.get("CAUSAL_ARM_BIN", ROOT / "target" / "release" / "causal-arm"))
 ANCHORS = ROOT / "tests" / "bench" / "causal_anchors.py"
 ANCHOR_VENV = ROOT / "target" / "anchorvenv"
 ANCHOR_REQ = ROOT / "tests" / "bench" / "requirements-anchors.txt"
@@ -82,7 +82,9 @@ def prepare_bag(exp, steps, work, seed):
     bag, truth = work / "bag", work / "truth"
     timings, results = {}, {}
     if not (bag / "metadata.yaml").exists():
-        timings["generate"] = run([BIN, "generate", exp, "--steps", steps, "--seed", seed,
+        # exp 2 runs in episodes of 500 steps (pick, manoeuvre, release), exp 1 in one.
+        length = ["--episodes", steps // 500] if exp == "exp2" else ["--steps", steps]
+        timings["generate"] = run([BIN, "generate", exp, *length, "--seed", seed,
                                    "--out", bag, "--overwrite"])
     if not (truth / "truth.json").exists():
         timings["truth"] = run([BIN, "intervene", exp, "--bag", bag, "--states", 500,
@@ -166,18 +168,21 @@ def main():
         rows = [json.loads(l) for l in record.read_text().splitlines() if l.strip()]
         print_table(rows)
         return
-    if not BIN.exists():
-        sys.exit(f"error: {BIN} missing; build it with `cargo build --release -p causal-arm`")
     cells = []
     for cell in args.cells.split(","):
         exp, _, steps = cell.partition(":")
         if exp not in GRID or not steps.isdigit() or int(steps) <= 0:
             sys.exit(f"error: grid cell {cell!r}: expected exp1:<steps> or exp2:<steps> with steps > 0")
+        if exp == "exp2" and int(steps) % 500:
+            sys.exit(f"error: grid cell {cell!r}: exp2 runs in episodes of 500 steps; "
+                     f"steps must be a multiple of 500")
         cells.append((exp, int(steps)))
     budgets = args.budgets.split(",")
     for b in budgets:
         if b not in BUDGETS:
             sys.exit(f"error: budget {b!r}: expected one of {', '.join(BUDGETS)}")
+    if not BIN.exists():
+        sys.exit(f"error: {BIN} missing; build it with `cargo build --release -p causal-arm`")
     rows = []
     command = " ".join([sys.argv[0], "--cells", args.cells, "--budgets", args.budgets, "--seed", args.seed])
     for exp, steps in cells:

@@ -28,6 +28,10 @@ pub struct Changes {
     pub rows: Vec<usize>,
     /// s(t) per row, `[row][state]`.
     pub states: Vec<Vec<f64>>,
+    /// Whether the magnet held the cube in s(t), per row (1 or 0): observed before the
+    /// action, so as legitimate a control as the state, and the context in which the
+    /// joints move the cube.
+    pub holding: Vec<f64>,
     /// a(t) per row, `[row][action]`.
     pub actions: Vec<Vec<f64>>,
     /// Δs per row, `[row][state]`.
@@ -54,6 +58,7 @@ impl Changes {
         let to_f64 = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<f64>>();
         let states = rows.iter().map(|&r| to_f64(data.state(r))).collect();
         let actions = rows.iter().map(|&r| to_f64(data.action(r))).collect();
+        let holding = rows.iter().map(|&r| f64::from(data.holding[r])).collect();
         let deltas = rows.iter().map(|&r| one_step_changes(data, r)).collect();
         let n = rows.len().max(1) as f64;
         let resolution = (0..data.state_width())
@@ -70,6 +75,7 @@ impl Changes {
             angular: angular_features(data.experiment),
             rows,
             states,
+            holding,
             actions,
             deltas,
             resolution,

@@ -96,7 +96,8 @@ impl Design {
 }
 
 /// The state as controls and interaction partners, standardized: a plain feature as it is,
-/// an Euler angle as its sine and cosine (its value jumps by 2π at ±π, its pose does not).
+/// an Euler angle as its sine and cosine (its value jumps by 2π at ±π, its pose does not),
+/// and whether the cube is held (where it varies).
 fn state_controls(changes: &Changes) -> Vec<Vec<f64>> {
     let ns = changes.states.first().map_or(0, Vec::len);
     let column = |k: usize, f: fn(f64) -> f64| changes.states.iter().map(|s| f(s[k])).collect();
@@ -109,6 +110,7 @@ fn state_controls(changes: &Changes) -> Vec<Vec<f64>> {
             controls.extend(standardized(column(k, |v| v)));
         }
     }
+    controls.extend(standardized(changes.holding.clone()));
     controls
 }
 

@@ -71,6 +71,9 @@ impl GrangerSettings {
     }
 }
 
+/// The score of a denied edge in the data's claims: below every test's deviate.
+const DENIED_SCORE: f64 = -41.0;
+
 /// The test of one action on one feature's change.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PairTest {
@@ -213,6 +216,11 @@ impl DataTest {
         for (a, row) in decisions.iter().enumerate() {
             for (k, d) in row.iter().enumerate() {
                 claims.drives[a][k] = d.verdict == Verdict::Drives;
+                // A denial is the strongest evidence against an edge, whatever a test on
+                // rounding noise says: it ranks last.
+                if d.verdict == Verdict::DoesNot {
+                    claims.score[a][k] = DENIED_SCORE;
+                }
             }
         }
         claims.decisions = Some(decisions);

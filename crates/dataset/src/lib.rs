@@ -115,6 +115,21 @@ impl Dataset {
         &self.next_states[i * w..(i + 1) * w]
     }
 
+    /// The one-step change s(t+1) − s(t) of transition `i`, in f64 (exact for f32 states),
+    /// Euler angles wrapped into (−π, π]: what an action causes, in the feature's unit.
+    pub fn change(&self, i: usize) -> Vec<f64> {
+        let angular = angular_features(self.experiment);
+        self.next_state(i)
+            .iter()
+            .zip(self.state(i))
+            .zip(&angular)
+            .map(|((&next, &now), &angle)| {
+                let d = next as f64 - now as f64;
+                if angle { wrap_angle(d) } else { d }
+            })
+            .collect()
+    }
+
     /// Appends `other` (same experiment and action source), renumbering its episodes
     /// after ours so episodes from different bags stay distinct.
     pub fn append(&mut self, other: Dataset) -> Result<(), DatasetError> {

@@ -1,25 +1,10 @@
-//! The one-step changes Δs(t) = s(t+1) − s(t) every data-level test explains, Euler angles
-//! wrapped, on a seeded draw of the transitions.
+//! The one-step changes Δs(t) = s(t+1) − s(t) every data-level test explains
+//! ([`Dataset::change`]), on a seeded draw of the transitions.
 
-use causal_arm_dataset::{Dataset, angular_features, wrap_angle};
+use causal_arm_dataset::{Dataset, angular_features};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::index::sample;
-
-/// The change of every state feature over transition `r`, in f64 (exact for f32 states),
-/// Euler angles wrapped into (−π, π].
-pub fn one_step_changes(data: &Dataset, r: usize) -> Vec<f64> {
-    let angular = angular_features(data.experiment);
-    data.next_state(r)
-        .iter()
-        .zip(data.state(r))
-        .zip(&angular)
-        .map(|((&next, &now), &angle)| {
-            let d = next as f64 - now as f64;
-            if angle { wrap_angle(d) } else { d }
-        })
-        .collect()
-}
 
 /// A draw of transitions with their states, actions and changes as f64 columns.
 #[derive(Debug, Clone)]
@@ -59,7 +44,7 @@ impl Changes {
         let states = rows.iter().map(|&r| to_f64(data.state(r))).collect();
         let actions = rows.iter().map(|&r| to_f64(data.action(r))).collect();
         let holding = rows.iter().map(|&r| f64::from(data.holding[r])).collect();
-        let deltas = rows.iter().map(|&r| one_step_changes(data, r)).collect();
+        let deltas = rows.iter().map(|&r| data.change(r)).collect();
         let n = rows.len().max(1) as f64;
         let resolution = (0..data.state_width())
             .map(|k| {

@@ -163,18 +163,26 @@ impl DataTest {
         Normal::standard().inverse_cdf(1.0 - self.level())
     }
 
+    /// The test in words, for the rules: which test of which block.
+    fn test_words(&self) -> String {
+        let test = if self.settings.robust {
+            "robust Wald"
+        } else {
+            "F"
+        };
+        format!(
+            "{test} test of a_j's block ({})",
+            terms_words(self.settings.terms)
+        )
+    }
+
     /// Two-valued claims of the standard anchor: drives where p is below the corrected level.
     pub fn anchor_claims(&self, method: &str) -> EdgeClaims {
         let level = self.level();
         let mut claims = self.claims_frame(method);
         claims.rule = format!(
-            "drives when the {} test of a_j's block ({}) on the one-step change has p < {:.1e} (family-wise {} with Bonferroni over {} pairs), {} transitions",
-            if self.settings.robust {
-                "robust Wald"
-            } else {
-                "F"
-            },
-            terms_words(self.settings.terms),
+            "drives when the {} on the one-step change has p < {:.1e} (family-wise {} with Bonferroni over {} pairs), {} transitions",
+            self.test_words(),
             level,
             self.settings.alpha,
             self.action_names.len() * self.state_names.len(),
@@ -193,13 +201,8 @@ impl DataTest {
     pub fn claims(&self, method: &str) -> EdgeClaims {
         let mut claims = self.claims_frame(method);
         claims.rule = format!(
-            "data: drives when the {} test of a_j's block ({}) has p < {:.1e} (family-wise {}, Bonferroni); does not when s_k never changes or is predicted without a_j to within {} x its f32 resolution; else undecided ({} of {} transitions)",
-            if self.settings.robust {
-                "robust Wald"
-            } else {
-                "F"
-            },
-            terms_words(self.settings.terms),
+            "data: drives when the {} has p < {:.1e} (family-wise {}, Bonferroni); does not when s_k never changes or is predicted without a_j to within {} x its f32 resolution; else undecided ({} of {} transitions)",
+            self.test_words(),
             self.level(),
             self.settings.alpha,
             self.settings.resolution_margin,

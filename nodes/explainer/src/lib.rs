@@ -415,21 +415,7 @@ impl Picks {
 /// episode) has scale 0 and no action can be shown to affect it.
 pub fn change_scale(data: &Dataset) -> Vec<f64> {
     let w = data.state_width();
-    let angular = causal_arm_dataset::angular_features(data.experiment);
-    let delta = |r: usize| {
-        data.next_state(r)
-            .iter()
-            .zip(data.state(r))
-            .zip(&angular)
-            .map(|((&n, &s), &a)| {
-                let d = n as f64 - s as f64;
-                if a {
-                    causal_arm_dataset::wrap_angle(d)
-                } else {
-                    d
-                }
-            })
-    };
+    let delta = |r: usize| data.change(r).into_iter();
     let n = data.rows().max(1) as f64;
     let mut mean = vec![0f64; w];
     for r in 0..data.rows() {

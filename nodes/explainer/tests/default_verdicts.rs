@@ -10,10 +10,8 @@ use causal_arm_explainer::verdicts::shap_and_cai_claims;
 use causal_arm_explainer::{Explainer, Method, Settings};
 use causal_arm_protocol::RunPlan;
 use causal_arm_scoring::{EdgeClaims, Verdict};
-use causal_arm_trainer::model_file::describe;
-use causal_arm_trainer::{
-    ModelKind, Profile, TrainOptions, cross_validate, load_model, save_model,
-};
+use causal_arm_trainer::job::train_and_save;
+use causal_arm_trainer::{ModelKind, Profile, TrainOptions, load_model};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
@@ -57,18 +55,16 @@ fn train(data: &Dataset, dir: &std::path::Path, epochs: usize, learning_rate: f6
         batch_size: 64,
         ..TrainOptions::default()
     };
-    let fm = cross_validate(data, ModelKind::Fm, &options, &mut |_| {}).unwrap();
-    let (name, model, problem, settings) = &fm.models[0];
-    let meta = describe(
-        name,
-        data.experiment,
-        model,
-        problem,
-        settings,
-        "test".into(),
-        &data.sources,
-    );
-    save_model(&dir.join("model"), model, &meta).unwrap();
+    let out = dir.join("model");
+    train_and_save(
+        data,
+        &[ModelKind::Fm],
+        &options,
+        ActionSource::Realized,
+        &out,
+        &mut |_| {},
+    )
+    .unwrap();
 }
 
 /// Replaces every layer's weights and biases in `dir/model/fm.safetensors` by draws of an

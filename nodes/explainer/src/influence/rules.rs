@@ -138,10 +138,7 @@ pub fn error_pool(data: &Dataset, settings: &InfluenceSettings) -> Vec<usize> {
 /// mean change over `rows` (Euler angles wrapped): what a model that learned nothing about
 /// the state and action achieves, the yardstick of [`crate::decide::MAX_ERROR_RATIO`].
 pub fn mean_change_error(data: &Dataset, rows: &[usize]) -> Vec<f64> {
-    let changes: Vec<Vec<f64>> = rows
-        .iter()
-        .map(|&r| causal_arm_discovery::one_step_changes(data, r))
-        .collect();
+    let changes: Vec<Vec<f64>> = rows.iter().map(|&r| data.change(r)).collect();
     let n = rows.len().max(1) as f64;
     (0..data.state_width())
         .map(|k| {

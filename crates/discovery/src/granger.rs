@@ -71,6 +71,10 @@ impl GrangerSettings {
     }
 }
 
+/// Residual sums of squares below this share of the change's total are rounding (the
+/// classical F test's floor).
+const RESIDUAL_FLOOR: f64 = 1e-12;
+
 /// The score of a denied edge in the data's claims: below every test's deviate.
 const DENIED_SCORE: f64 = -41.0;
 
@@ -351,6 +355,17 @@ fn fit_and_test(design: &Design, y: &DMatrix<f64>, robust: bool) -> Vec<Vec<Pair
     let beta = &inverse * x.tr_mul(y);
     let residual = y - x * &beta;
     let rss: Vec<f64> = residual.column_iter().map(|e| e.norm_squared()).collect();
+    // The F test's noise floor: a residual below 1e-12 of the change's own variance is f32
+    // rounding (θ_j + a_j recorded in f32), not noise an action could be tested against;
+    // without the floor the classical test reads rounding as effects.
+    let rss_floor: Vec<f64> = y
+        .column_iter()
+        .zip(&rss)
+        .map(|(c, &r)| {
+            let mean = c.mean();
+            r.max(RESIDUAL_FLOOR * c.iter().map(|v| (v - mean).powi(2)).sum::<f64>())
+        })
+        .collect();
     // Rows of X (XᵀX)⁻¹: the sandwich's bread applied to each row, for the robust test.
     let bread = robust.then(|| x * &inverse);
     let dof_resid = (n - p).max(1) as f64;
@@ -377,8 +392,9 @@ fn fit_and_test(design: &Design, y: &DMatrix<f64>, robust: bool) -> Vec<Vec<Pair
                             (w, p, deviate(p, wilson_hilferty(w, m)))
                         }
                         None => {
-                            let f =
-                                drop_rss / m as f64 / (rss[k] / dof_resid).max(f64::MIN_POSITIVE);
+                            let f = drop_rss
+                                / m as f64
+                                / (rss_floor[k] / dof_resid).max(f64::MIN_POSITIVE);
                             let p = f_tail(f, m, dof_resid);
                             (f, p, deviate(p, wilson_hilferty(f * m as f64, m)))
                         }

@@ -8,8 +8,13 @@
 //! - Where the data leaves an edge undecided, the model may decide "drives": CAI or SHAP
 //!   above κ × the model's error on the feature (the `/err` rules), but only on features
 //!   the model has learned, whose error is well below predicting the mean change
-//!   ([`MAX_ERROR_RATIO`]). An untrained or random model has learned nothing and decides
-//!   nothing.
+//!   ([`MAX_ERROR_RATIO`]), and only for a continuous action. An untrained or random model
+//!   has learned nothing and decides nothing. A discrete command switched in a few percent
+//!   of the rows (the magnet's) is probed by the model in states where the data rarely
+//!   switches it: there a model extrapolates what the babbler did around its switches (on
+//!   the exp2 quick bag, a 100-epoch FM's CAI "finds" a_mgt → ef_x, ef_y, ef_z, ef_rx,
+//!   ef_ry; the magnet moves no joint), so its claims stay undecided until the data
+//!   confirms them.
 //! - Otherwise "undecided", with why and what would decide it.
 
 use causal_arm_discovery::DataTest;
@@ -30,6 +35,9 @@ pub struct ModelEvidence<'a> {
     pub error: Vec<f64>,
     /// Per feature: MAE of predicting the mean one-step change.
     pub mean_change_error: Vec<f64>,
+    /// Per action: whether it takes a few discrete values (the magnet command), on which
+    /// the model's evidence alone decides nothing.
+    pub discrete: Vec<bool>,
 }
 
 impl ModelEvidence<'_> {
@@ -81,7 +89,7 @@ pub fn default_claims(
             let data_score = data.pairs[a][k].z / z_crit;
             let model_score = model
                 .claim(a, k)
-                .filter(|_| model.learned(k))
+                .filter(|_| model.learned(k) && !model.discrete[a])
                 .map(|p| p.score[a][k] / kappa);
             let (decision, score) = combine(data_decision, data_score, model, model_score, (a, k));
             claims.score[a][k] = score;
@@ -152,7 +160,7 @@ fn combine(
             (decision, m)
         }
         (Verdict::Undecided, None) => {
-            let (why, to_decide) = undecided_by_model(model, k);
+            let (why, to_decide) = undecided_by_model(model, a, k);
             let decision = Decision {
                 reason: format!("{}; {why}", data.reason),
                 to_decide: format!("{}; {to_decide}", data.to_decide),
@@ -164,8 +172,17 @@ fn combine(
 }
 
 /// Why the model did not decide an undecided edge, and what would let it.
-fn undecided_by_model(model: &ModelEvidence, k: usize) -> (String, &'static str) {
+fn undecided_by_model(model: &ModelEvidence, a: usize, k: usize) -> (String, &'static str) {
     let ratio = model.error_ratio(k);
+    if let Some(part) = model.claim(a, k).filter(|_| model.discrete[a]) {
+        return (
+            format!(
+                "{} claims it ({:.2} x its error), but this command is discrete and rarely switched: the model's evidence extrapolates and does not decide alone",
+                part.method, part.score[a][k]
+            ),
+            "more rows with this command switching (the data test then decides)",
+        );
+    }
     if ratio >= MAX_ERROR_RATIO {
         (
             format!(

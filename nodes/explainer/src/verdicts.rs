@@ -58,6 +58,9 @@ pub fn shap_and_cai_claims(
         parts: vec![&cai[0], &shap_err[0]],
         error: floors.per_context[0].clone(),
         mean_change_error: mean_change_error(data, &error_pool(data, settings)),
+        discrete: (0..data.action_width())
+            .map(|j| crate::influence::discrete_values(data, j).is_some())
+            .collect(),
     };
     let default = default_claims(
         &default_method(explanation.settings.method),

@@ -171,7 +171,7 @@ fn network_outputs(explainer: &Explainer, batch: &[f32], width: usize) -> Result
 /// Distinct values of action column `j` when it takes at most a few (the magnet command's
 /// −1, 0, +1): such an action is probed at every value, as the simulator's truth flips
 /// it, rather than at marginal draws that almost never leave its common value.
-fn discrete_values(data: &Dataset, j: usize) -> Option<Vec<f32>> {
+pub(crate) fn discrete_values(data: &Dataset, j: usize) -> Option<Vec<f32>> {
     distinct_values(data.rows(), |r| data.action(r)[j], 8)
 }
 

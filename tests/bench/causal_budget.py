@@ -109,14 +109,21 @@ def prepare_bag(exp, steps, work, seed):
     return bag, truth, timings, results, seconds
 
 
-def model_cell(exp, bag, truth, budget, work):
-    """Train the forward model at `budget` and explain it: the default verdicts."""
+def model_cell(exp, bag, truth, budget, work, reuse):
+    """Train the forward model at `budget` and explain it: the default verdicts. With
+    `reuse`, a cell explained before is scored again without training or explaining (its
+    recorded wall times kept in timings.json)."""
     model = work / f"model-{budget}"
-    timings = {"train": run([BIN, "train", "--bag", bag, "--model", "fm", "--profile", "quick",
-                             "--max-folds", "1", "--out", model, *BUDGETS[budget]])}
-    timings["explain"] = run([BIN, "explain", "--model", model, "--bag", bag, "--method", "kernel",
-                              "--no-pair-plots", "--truth", truth])
     claims = model / "explain-kernel" / "claims.json"
+    recorded = model / "timings.json"
+    if reuse and claims.exists() and recorded.exists():
+        timings = json.loads(recorded.read_text())
+    else:
+        timings = {"train": run([BIN, "train", "--bag", bag, "--model", "fm", "--profile", "quick",
+                                 "--max-folds", "1", "--out", model, *BUDGETS[budget]])}
+        timings["explain"] = run([BIN, "explain", "--model", model, "--bag", bag, "--method",
+                                  "kernel", "--no-pair-plots", "--truth", truth])
+        recorded.write_text(json.dumps(timings))
     return timings, scores(claims, truth, model / "explain-kernel" / "scores_all.json")
 
 
@@ -154,6 +161,30 @@ def print_table(rows):
         print(f"      command: {row['command']}")
 
 
+ANCHOR_NAMES = ("granger", "granger-x", "py-granger", "py-granger-x", "pcmci", "perm", "pc")
+
+
+def print_markdown(rows):
+    """The RESULTS table: per cell the default, the data test alone, the old rule and the
+    best anchor by F1, each as precision / recall / F1 (AUROC), and the wall times."""
+    def prf(s):
+        return f"{fmt(s['precision'])} / {fmt(s['recall'])} / {fmt(s['f1'])} ({fmt(s['auroc'])})"
+    print("| exp | steps | FM | default `kernel+cai+data` P / R / F1 (AUROC) | undecided | data test alone | "
+          "best anchor | old `kernel+cai` | wall: generate, data, anchors, train, explain |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        m = r["scores"]
+        anchors = [(m[a]["f1"] or 0.0, a) for a in ANCHOR_NAMES if a in m]
+        f1, best = max(anchors)
+        t = r["timings"]
+        secs = r["seconds"]
+        wall = ", ".join(f"{v:.1f}" if isinstance(v, (int, float)) else "–" for v in (
+            t.get("generate"), secs.get("data"), sum(v or 0 for k, v in secs.items() if k in ANCHOR_NAMES[2:]),
+            t.get("train"), t.get("explain")))
+        print(f"| {r['exp']} | {r['steps']:,} | {r['budget']} | {prf(m[DEFAULT])} | {m[DEFAULT]['undecided']} | "
+              f"{prf(m['data'])} | {best} {prf(m[best])} | {prf(m['kernel+cai'])} | {wall} s |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cells", default="exp1:5000,exp2:10000",
@@ -164,11 +195,14 @@ def main():
     ap.add_argument("--work", default=str(ROOT / "target" / "causal_budget"))
     ap.add_argument("--record", default=str(ROOT / "docs" / "runs" / "causal_budget" / "record.jsonl"))
     ap.add_argument("--table", action="store_true", help="print the recorded table and exit")
+    ap.add_argument("--markdown", action="store_true", help="with --table: as the RESULTS table")
+    ap.add_argument("--reuse-models", action="store_true",
+                    help="score cells already trained and explained (in --work) without redoing them")
     args = ap.parse_args()
     record = pathlib.Path(args.record)
     if args.table:
         rows = [json.loads(l) for l in record.read_text().splitlines() if l.strip()]
-        print_table(rows)
+        (print_markdown if args.markdown else print_table)(rows)
         return
     cells = []
     for cell in args.cells.split(","):
@@ -193,7 +227,7 @@ def main():
         bag, truth, timings, results, seconds = prepare_bag(exp, steps, work, args.seed)
         seconds["data"] = timings["data"]
         for budget in budgets:
-            cell_timings, cell_scores = model_cell(exp, bag, truth, budget, work)
+            cell_timings, cell_scores = model_cell(exp, bag, truth, budget, work, args.reuse_models)
             row = {"exp": exp, "steps": steps, "budget": budget, "seed": args.seed,
                    "scores": {**results, **{m: s for m, s in cell_scores.items()
                                             if m in (DEFAULT, "kernel+cai", "kernel/err", "cai/err")}},

@@ -75,6 +75,10 @@ impl GrangerSettings {
 /// classical F test's floor).
 const RESIDUAL_FLOOR: f64 = 1e-12;
 
+/// The largest deviate reported (an exactly fitted effect's statistic is infinite; claims
+/// files hold finite numbers).
+const MAX_DEVIATE: f64 = 1e6;
+
 /// The score of a denied edge in the data's claims: below every test's deviate.
 const DENIED_SCORE: f64 = -41.0;
 
@@ -428,11 +432,16 @@ impl PairTest {
     }
 }
 
-/// bᵀ M⁻¹ b with M's pseudo-inverse (a block may be rank-deficient); 0 for a zero M.
+/// bᵀ M⁻¹ b with M's pseudo-inverse (a block may be rank-deficient). A zero M (a change
+/// fitted exactly, so the robust covariance vanishes) gives ∞ for a nonzero b, 0 for b = 0.
 fn quadratic_form(b: &DMatrix<f64>, m: &DMatrix<f64>) -> f64 {
     let scale = m.diagonal().iter().fold(0.0f64, |a, &v| a.max(v.abs()));
     if scale == 0.0 || !scale.is_finite() {
-        return 0.0;
+        return if b.iter().any(|&v| v != 0.0) {
+            f64::INFINITY
+        } else {
+            0.0
+        };
     }
     let Ok(inv) = m.clone().pseudo_inverse(1e-12 * scale) else {
         return 0.0;
@@ -466,7 +475,7 @@ fn deviate(p: f64, approximate: f64) -> f64 {
 fn wilson_hilferty(w: f64, dof: usize) -> f64 {
     let k = dof as f64;
     let c = 2.0 / (9.0 * k);
-    (((w.max(0.0) / k).cbrt() - (1.0 - c)) / c.sqrt()).max(-40.0)
+    (((w.max(0.0) / k).cbrt() - (1.0 - c)) / c.sqrt()).clamp(-40.0, MAX_DEVIATE)
 }
 
 fn std_dev(values: &[f64]) -> f64 {

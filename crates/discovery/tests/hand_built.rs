@@ -126,3 +126,23 @@ fn too_few_rows_and_bad_settings_are_refused_with_the_reason() {
     let err = DataTest::run(&hand_built(500, 3), &bad).unwrap_err();
     assert!(err.to_string().contains("(0, 1)"), "{err}");
 }
+
+/// A change that one action sets exactly (Δs = a, no noise at all): the robust covariance
+/// vanishes, and the verdict must still be "drives", with a finite score.
+#[test]
+fn an_exactly_determined_effect_is_claimed_with_a_finite_score() {
+    let mut data = hand_built(2000, 9);
+    for r in 0..data.rows() {
+        let a0 = data.actions[r * 7];
+        data.next_states[r * 10 + EF_Z] = data.states[r * 10 + EF_Z] + a0;
+    }
+    let test = DataTest::run(&data, &GrangerSettings::data_test()).unwrap();
+    let claims = test.claims("data");
+    assert_eq!(
+        claims.verdict(0, EF_Z),
+        Verdict::Drives,
+        "{:?}",
+        test.decide(0, EF_Z)
+    );
+    assert!(claims.score.iter().flatten().all(|v| v.is_finite()));
+}

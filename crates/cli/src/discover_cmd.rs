@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use causal_arm_dataset::{ActionSource, Cache, load_bags};
-use causal_arm_discovery::{DataTest, GrangerSettings, Terms};
+use causal_arm_discovery::{Changes, DataTest, GrangerSettings, Terms};
 use causal_arm_scoring::EdgeClaims;
 use causal_arm_truth::{check_names, score_claims, score_table};
 use clap::Args;
@@ -74,7 +74,10 @@ pub fn run(args: &DiscoverArgs) -> anyhow::Result<()> {
         seed: args.seed,
         ..GrangerSettings::data_test()
     };
-    let test = DataTest::run(&data, &settings)?;
+    // One draw of the transitions serves the data test and both anchors.
+    let all: Vec<usize> = (0..data.rows()).collect();
+    let changes = Changes::draw(&data, &all, args.max_rows, args.seed);
+    let test = DataTest::on(&changes, &data, &settings)?;
     let mut claims = vec![test.claims("data")];
     for (terms, name) in [
         (Terms::Linear, "granger"),
@@ -85,7 +88,7 @@ pub fn run(args: &DiscoverArgs) -> anyhow::Result<()> {
             seed: args.seed,
             ..GrangerSettings::anchor(terms)
         };
-        claims.push(DataTest::run(&data, &anchor)?.anchor_claims(name));
+        claims.push(DataTest::on(&changes, &data, &anchor)?.anchor_claims(name));
     }
     print_verdicts(&claims[0], &test);
     write_json(&args.out, "claims.json", &claims)?;

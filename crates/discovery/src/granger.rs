@@ -125,18 +125,19 @@ pub struct DataTest {
 }
 
 impl DataTest {
-    /// Runs every pair's test on all of `data`.
+    /// Runs every pair's test on all of `data` (a draw of `settings.max_rows` of it).
     pub fn run(data: &Dataset, settings: &GrangerSettings) -> Result<Self> {
         let all: Vec<usize> = (0..data.rows()).collect();
-        Self::run_rows(data, &all, settings)
+        let changes = Changes::draw(data, &all, settings.max_rows, settings.seed);
+        Self::on(&changes, data, settings)
     }
 
-    /// Runs every pair's test on the transitions `rows` of `data` (one context's).
-    pub fn run_rows(data: &Dataset, rows: &[usize], settings: &GrangerSettings) -> Result<Self> {
+    /// Runs every pair's test on `changes`, a draw of `data`'s transitions: several tests
+    /// (the data test and the anchors) share one draw.
+    pub fn on(changes: &Changes, data: &Dataset, settings: &GrangerSettings) -> Result<Self> {
         settings.check()?;
         let started = std::time::Instant::now();
-        let changes = Changes::draw(data, rows, settings.max_rows, settings.seed);
-        let design = Design::build(&changes, settings.terms);
+        let design = Design::build(changes, settings.terms);
         let (n, p) = design.x.shape();
         if n < 2 * p {
             return Err(DiscoveryError::Options(format!(
@@ -152,10 +153,10 @@ impl DataTest {
             action_names: action_names(data.experiment),
             state_names: state_names(data.experiment),
             rows: n,
-            data_rows: rows.len(),
+            data_rows: data.rows(),
             pairs,
             changes: (0..ns).map(|k| changes.ever_changes(k)).collect(),
-            resolution: changes.resolution,
+            resolution: changes.resolution.clone(),
             seconds: started.elapsed().as_secs_f64(),
         })
     }

@@ -78,14 +78,18 @@ pub fn default_claims(
     kappa: f64,
 ) -> EdgeClaims {
     let mut claims = data.claims(method);
+    let data_rule = std::mem::take(&mut claims.rule);
+    let data_decisions = claims
+        .decisions
+        .take()
+        .expect("the data test's claims are three-valued");
     let z_crit = data.critical_z();
     let (na, ns) = (data.action_names.len(), data.state_names.len());
     let mut decisions = Vec::with_capacity(na);
     let mut interval = vec![vec![[0.0; 2]; ns]; na];
-    for a in 0..na {
+    for (a, data_row) in data_decisions.into_iter().enumerate() {
         let mut row = Vec::with_capacity(ns);
-        for k in 0..ns {
-            let data_decision = data.decide(a, k);
+        for (k, data_decision) in data_row.into_iter().enumerate() {
             let data_score = data.pairs[a][k].z / z_crit;
             let model_score = model
                 .claim(a, k)
@@ -116,7 +120,7 @@ pub fn default_claims(
             .map(|p| p.method.as_str())
             .collect::<Vec<_>>()
             .join(", "),
-        data.claims("data").rule
+        data_rule
     );
     claims
 }

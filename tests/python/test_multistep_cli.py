@@ -36,8 +36,12 @@ def test_every_horizon_is_scored_against_the_truth_at_that_horizon(run_cli, runs
     assert "cai through the FM chained 3 steps" in r.stdout, r.stdout
     assert "scored against" in r.stdout
     # The per-horizon table: one line per horizon over all states and pairs.
-    table = [line.split() for line in r.stdout.splitlines() if line.startswith("cai/err")]
-    assert sorted(int(cols[3]) for cols in table) == [1, 2, 3], r.stdout
+    for method in ("cai+data", "cai/err", "data"):
+        table = [line.split() for line in r.stdout.splitlines() if line.startswith(method + " ")]
+        assert sorted(int(cols[3]) for cols in table) == [1, 2, 3], (method, r.stdout)
+    counts = [line for line in r.stdout.splitlines() if line.startswith("h=")]
+    assert len(counts) == 3 and all("cai+data:" in line and "undecided" in line
+                                    for line in counts), r.stdout
     magnet = [line for line in r.stdout.splitlines() if line.startswith("a_mgt → o_z")]
     assert len(magnet) == 1 and "h=1 " in magnet[0] and "h=3 " in magnet[0], r.stdout
 
@@ -49,6 +53,20 @@ def test_every_horizon_is_scored_against_the_truth_at_that_horizon(run_cli, runs
         contexts = [c["context"] for c in h["claims"]]
         assert contexts[0] == "all" and len(contexts) == 7
         assert all(c["horizon"] == h["horizon"] for c in h["claims"])
+        # Three-valued verdicts per horizon, and the data's own test beside them.
+        default, data = h["default"], h["data"]
+        assert (default["method"], data["method"]) == ("cai+data", "data")
+        assert default["horizon"] == data["horizon"] == h["horizon"]
+        verdicts = {d["verdict"] for row in default["decisions"] for d in row}
+        assert verdicts <= {"drives", "does-not", "undecided"}
+        cai = h["claims"][0]
+        for a, row in enumerate(default["decisions"]):
+            for k, d in enumerate(row):
+                assert default["drives"][a][k] == (d["verdict"] == "drives")
+                if h["horizon"] > 1:
+                    # Beyond one step only the chained model claims; never more than CAI.
+                    assert not d["verdict"] == "drives" or cai["drives"][a][k]
+                    assert d["verdict"] != "does-not" or not data["drives"][a][k]
         overall = next(s for s in h["scores"] if s["context"] == "all" and s["block"] == "all")
         assert overall["horizon"] == h["horizon"]
         s = overall["scores"]

@@ -556,9 +556,13 @@ fn run_multistep(args: &ExplainArgs, truth: Option<&Truth>, horizon: usize) -> a
     };
     write_multistep(&out, &result, &rows)?;
     for h in &result.horizons {
-        let all = &h.claims[0];
-        let claimed = all.drives.iter().flatten().filter(|&&d| d).count();
-        println!("h={:<2} {claimed} edges claimed over all states", h.horizon);
+        let (drives, does_not, undecided) = h.default.verdict_counts();
+        let (data_drives, ..) = h.data.verdict_counts();
+        println!(
+            "h={:<2} {}: {drives} drives, {does_not} does not, {undecided} undecided (all states); the data test alone claims {data_drives}",
+            h.horizon,
+            multistep::DEFAULT_METHOD
+        );
     }
     if let (Some(truth), Some(path)) = (truth, &args.truth) {
         println!(

@@ -130,6 +130,53 @@ impl Dataset {
             .collect()
     }
 
+    /// The change s(t+h) − s(t) from transition `i` over `horizon` consecutive transitions
+    /// (row `i + horizon − 1`'s s(t+1)), Euler angles wrapped: what an action at t causes h
+    /// steps on. The caller makes sure the rows chain ([`Self::chainable_rows`]).
+    pub fn change_ahead(&self, i: usize, horizon: usize) -> Vec<f64> {
+        let angular = angular_features(self.experiment);
+        self.next_state(i + horizon.max(1) - 1)
+            .iter()
+            .zip(self.state(i))
+            .zip(&angular)
+            .map(|((&later, &now), &angle)| {
+                let d = later as f64 - now as f64;
+                if angle { wrap_angle(d) } else { d }
+            })
+            .collect()
+    }
+
+    /// Whether row `r + 1` continues row `r`: same episode, the next step, and its s(t) is
+    /// the s(t+1) of row `r` (a dropped message leaves a hole a chain must not jump).
+    pub fn continues(&self, r: usize) -> bool {
+        r + 1 < self.rows()
+            && self.episodes[r + 1] == self.episodes[r]
+            && self.steps[r + 1] == self.steps[r].wrapping_add(1)
+            && self.state(r + 1) == self.next_state(r)
+    }
+
+    /// Per row, the number of consecutive transitions of its episode that start at it
+    /// (itself included): h steps ahead of row r are in the data when `reach[r] ≥ h`.
+    pub fn chain_reach(&self) -> Vec<usize> {
+        let mut reach = vec![1; self.rows()];
+        for r in (0..self.rows().saturating_sub(1)).rev() {
+            if self.continues(r) {
+                reach[r] = reach[r + 1] + 1;
+            }
+        }
+        reach
+    }
+
+    /// Rows from which `horizon` consecutive transitions of one episode follow.
+    pub fn chainable_rows(&self, horizon: usize) -> Vec<usize> {
+        self.chain_reach()
+            .iter()
+            .enumerate()
+            .filter(|&(_, &reach)| reach >= horizon)
+            .map(|(r, _)| r)
+            .collect()
+    }
+
     /// Appends `other` (same experiment and action source), renumbering its episodes
     /// after ours so episodes from different bags stay distinct.
     pub fn append(&mut self, other: Dataset) -> Result<(), DatasetError> {

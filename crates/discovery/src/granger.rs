@@ -110,6 +110,9 @@ pub struct DataTest {
     pub action_names: Vec<String>,
     /// State feature names (columns).
     pub state_names: Vec<String>,
+    /// h: the change tested is s(t+h) − s(t) (1: the one-step change).
+    #[serde(default = "one_step")]
+    pub horizon: usize,
     /// Transitions used.
     pub rows: usize,
     /// Transitions in the data.
@@ -132,6 +135,24 @@ impl DataTest {
         Self::on(&changes, data, settings)
     }
 
+    /// Runs every pair's test of a(t) on s(t+`horizon`) − s(t), over the rows of `data` that
+    /// start `horizon` consecutive transitions of one episode (a draw of
+    /// `settings.max_rows` of them). The later actions are not controlled: motor babbling
+    /// draws them afresh, so the test asks for a_j(t)'s total effect h steps on, through
+    /// whatever the arm does next.
+    pub fn run_ahead(data: &Dataset, horizon: usize, settings: &GrangerSettings) -> Result<Self> {
+        let candidates = data.chainable_rows(horizon);
+        if candidates.is_empty() {
+            return Err(DiscoveryError::Options(format!(
+                "none of the data's {} transitions starts {horizon} consecutive transitions inside an episode: a test {horizon} steps on needs longer episodes",
+                data.rows()
+            )));
+        }
+        let changes =
+            Changes::draw_ahead(data, &candidates, horizon, settings.max_rows, settings.seed);
+        Self::on(&changes, data, settings)
+    }
+
     /// Runs every pair's test on `changes`, a draw of `data`'s transitions: several tests
     /// (the data test and the anchors) share one draw.
     pub fn on(changes: &Changes, data: &Dataset, settings: &GrangerSettings) -> Result<Self> {
@@ -139,7 +160,7 @@ impl DataTest {
         let started = std::time::Instant::now();
         let design = Design::build(changes, settings.terms);
         let (n, p) = design.x.shape();
-        if n < 2 * p {
+        if n == 0 || n < 2 * p {
             return Err(DiscoveryError::Options(format!(
                 "the data test needs at least {} transitions for its {p} columns, it has {n}",
                 2 * p
@@ -147,11 +168,13 @@ impl DataTest {
         }
         let ns = data.state_width();
         let y = DMatrix::from_fn(n, ns, |r, k| changes.deltas[r][k]);
-        let pairs = fit_and_test(&design, &y, settings.robust);
+        let clusters = changes.clusters.as_deref().map(cluster_index);
+        let pairs = fit_and_test(&design, &y, settings.robust, clusters.as_ref());
         Ok(Self {
             settings: settings.clone(),
             action_names: action_names(data.experiment),
             state_names: state_names(data.experiment),
+            horizon: changes.horizon,
             rows: n,
             data_rows: data.rows(),
             pairs,
@@ -172,15 +195,22 @@ impl DataTest {
         Normal::standard().inverse_cdf(1.0 - self.level())
     }
 
-    /// The test in words, for the rules: which test of which block.
+    /// The test in words, for the rules: which test of which block on which change.
     fn test_words(&self) -> String {
-        let test = if self.settings.robust {
-            "robust Wald"
-        } else {
-            "F"
+        let test = match (self.settings.robust, self.horizon) {
+            (true, 1) => "robust Wald".to_owned(),
+            (true, h) => format!(
+                "cluster-robust Wald (stretches of {} steps)",
+                crate::changes::CLUSTER_SPAN * h
+            ),
+            (false, _) => "F".to_owned(),
+        };
+        let change = match self.horizon {
+            1 => "the one-step change".to_owned(),
+            h => format!("s(t+{h}) - s(t)"),
         };
         format!(
-            "{test} test of a_j's block ({})",
+            "{test} test of a_j's block ({}) on {change}",
             terms_words(self.settings.terms)
         )
     }
@@ -190,7 +220,7 @@ impl DataTest {
         let level = self.level();
         let mut claims = self.claims_frame(method);
         claims.rule = format!(
-            "drives when the {} on the one-step change has p < {:.1e} (family-wise {} with Bonferroni over {} pairs), {} transitions",
+            "drives when the {} has p < {:.1e} (family-wise {} with Bonferroni over {} pairs), {} transitions",
             self.test_words(),
             level,
             self.settings.alpha,
@@ -312,7 +342,7 @@ impl DataTest {
             method: method.to_owned(),
             rule: String::new(),
             context: causal_arm_dataset::Context::ALL.to_owned(),
-            horizon: 1,
+            horizon: self.horizon,
             observations: self.rows,
             action_names: self.action_names.clone(),
             state_names: self.state_names.clone(),
@@ -334,6 +364,10 @@ pub fn granger_claims(data: &Dataset, terms: Terms, method: &str) -> Result<Edge
     Ok(DataTest::run(data, &GrangerSettings::anchor(terms))?.anchor_claims(method))
 }
 
+fn one_step() -> usize {
+    1
+}
+
 fn terms_words(terms: Terms) -> &'static str {
     match terms {
         Terms::Linear => "a_j alone, the state as control",
@@ -342,8 +376,54 @@ fn terms_words(terms: Terms) -> &'static str {
     }
 }
 
+/// Rows grouped by cluster: per row its cluster's index (0..count), and the count.
+struct ClusterIndex {
+    of_row: Vec<usize>,
+    count: usize,
+}
+
+fn cluster_index(ids: &[u64]) -> ClusterIndex {
+    let mut seen = std::collections::HashMap::new();
+    let of_row = ids
+        .iter()
+        .map(|id| {
+            let next = seen.len();
+            *seen.entry(*id).or_insert(next)
+        })
+        .collect();
+    ClusterIndex {
+        of_row,
+        count: seen.len(),
+    }
+}
+
+/// The robust covariance of a block's coefficients from its scores `g` (rows: the bread's
+/// block columns times the residual): HC1 for independent rows, or CR1 (scores summed
+/// within each cluster, small-sample factor G/(G−1) · (n−1)/(n−p)) for correlated ones.
+fn robust_covariance(g: DMatrix<f64>, clusters: Option<&ClusterIndex>, p: usize) -> DMatrix<f64> {
+    let n = g.nrows();
+    let dof_resid = n.saturating_sub(p).max(1) as f64;
+    match clusters {
+        None => g.tr_mul(&g) * (n as f64 / dof_resid),
+        Some(c) => {
+            let mut sums = DMatrix::zeros(c.count, g.ncols());
+            for (r, &k) in c.of_row.iter().enumerate() {
+                let mut row = sums.row_mut(k);
+                row += g.row(r);
+            }
+            let groups = c.count.max(2) as f64;
+            sums.tr_mul(&sums) * (groups / (groups - 1.0) * (n as f64 - 1.0) / dof_resid)
+        }
+    }
+}
+
 /// Least squares of every column of `y` on the design, then every pair's block test.
-fn fit_and_test(design: &Design, y: &DMatrix<f64>, robust: bool) -> Vec<Vec<PairTest>> {
+fn fit_and_test(
+    design: &Design,
+    y: &DMatrix<f64>,
+    robust: bool,
+    clusters: Option<&ClusterIndex>,
+) -> Vec<Vec<PairTest>> {
     let x = &design.x;
     let (n, p) = x.shape();
     let gram = x.tr_mul(x);
@@ -391,7 +471,7 @@ fn fit_and_test(design: &Design, y: &DMatrix<f64>, robust: bool) -> Vec<Vec<Pair
                             let h = bread.columns(start, m);
                             let e = residual.column(k);
                             let g = DMatrix::from_fn(n, m, |r, c| h[(r, c)] * e[r]);
-                            let v = g.tr_mul(&g) * (n as f64 / dof_resid);
+                            let v = robust_covariance(g, clusters, p);
                             let w = quadratic_form(&b, &v);
                             let p = chi2_tail(w, m);
                             (w, p, deviate(p, wilson_hilferty(w, m)))

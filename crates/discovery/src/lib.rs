@@ -20,7 +20,7 @@ mod changes;
 mod design;
 mod granger;
 
-pub use changes::Changes;
+pub use changes::{CLUSTER_SPAN, Changes};
 pub use design::Terms;
 pub use granger::{DataTest, GrangerSettings, PairTest, granger_claims};
 

@@ -146,3 +146,73 @@ fn an_exactly_determined_effect_is_claimed_with_a_finite_score() {
     );
     assert!(claims.score.iter().flatten().all(|v| v.is_finite()));
 }
+
+/// One episode of an exp1-layout random walk: each joint integrates its own delta (a0..a5)
+/// plus drift noise, θ6 wanders on its own and a6 is a placebo; ef holds θ0..θ2's sum.
+fn random_walk(rows: usize, seed: u64) -> Dataset {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let action = Normal::new(0.0, 0.05).unwrap();
+    let drift = Normal::new(0.0, 0.05).unwrap();
+    let mut data = Dataset::empty(Experiment::Exp1, Default::default());
+    let mut state = vec![0.0f32; 10];
+    for i in 0..rows {
+        let a: Vec<f32> = (0..7).map(|_| action.sample(&mut rng) as f32).collect();
+        let mut next = state.clone();
+        for j in 0..7 {
+            // Mean-reverting, so the walk stays bounded; θ6 moves by drift alone.
+            let own = if j < 6 { a[j] } else { 0.0 };
+            next[j] = 0.95 * state[j] + own + drift.sample(&mut rng) as f32;
+        }
+        next[EF_X] = next[0] + next[1] + next[2];
+        data.states.extend(&state);
+        data.next_states.extend(&next);
+        data.actions.extend(&a);
+        data.episodes.push(0);
+        data.holding.push(0);
+        data.steps.push(i as u32);
+        data.stamps_ns.push(i as u64);
+        state = next;
+    }
+    data
+}
+
+#[test]
+fn h_steps_on_the_effect_is_found_and_overlapping_windows_claim_no_placebo() {
+    for seed in 0..6 {
+        let data = random_walk(6000, seed);
+        for horizon in [3, 8] {
+            let test = DataTest::run_ahead(&data, horizon, &GrangerSettings::data_test()).unwrap();
+            assert_eq!(test.horizon, horizon);
+            assert!(test.rows > 5000, "every row but the last h−1 chains");
+            let claims = test.claims("data");
+            assert_eq!(claims.horizon, horizon);
+            assert!(claims.rule.contains("cluster-robust"), "{}", claims.rule);
+            // a0(t) still moves θ0 (0.95^h of it) and ef_x h steps on.
+            assert_eq!(
+                claims.verdict(0, 0),
+                Verdict::Drives,
+                "{:?}",
+                test.decide(0, 0)
+            );
+            assert_eq!(claims.verdict(0, EF_X), Verdict::Drives);
+            // The placebo's windows overlap by h − 1 steps: rows are anything but
+            // independent, and a test that trusted them would see effects in the noise.
+            for k in 0..10 {
+                assert_ne!(
+                    claims.verdict(6, k),
+                    Verdict::Drives,
+                    "seed {seed}, h = {horizon}: a6 -> {}: {:?}",
+                    claims.state_names[k],
+                    test.decide(6, k)
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_horizon_beyond_every_episode_is_a_clear_error() {
+    let data = random_walk(30, 0);
+    let err = DataTest::run_ahead(&data, 40, &GrangerSettings::data_test()).unwrap_err();
+    assert!(err.to_string().contains("transitions"), "{err}");
+}

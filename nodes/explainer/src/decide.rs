@@ -17,6 +17,7 @@
 //!   confirms them.
 //! - Otherwise "undecided", with why and what would decide it.
 
+use causal_arm_dataset::Dataset;
 use causal_arm_discovery::DataTest;
 use causal_arm_scoring::{Decision, EdgeClaims, Verdict};
 
@@ -64,6 +65,14 @@ impl ModelEvidence<'_> {
             .filter(|p| p.drives[a][k])
             .max_by(|p, q| p.score[a][k].total_cmp(&q.score[a][k]))
     }
+}
+
+/// Per action: whether it takes a few discrete values (the magnet command), on which the
+/// model's evidence alone decides nothing ([`ModelEvidence::discrete`]).
+pub fn discrete_actions(data: &Dataset) -> Vec<bool> {
+    (0..data.action_width())
+        .map(|j| crate::influence::discrete_values(data, j).is_some())
+        .collect()
 }
 
 /// The default claims named `method`: the data's verdicts, with model "drives" where the
@@ -202,5 +211,58 @@ fn undecided_by_model(model: &ModelEvidence, a: usize, k: usize) -> (String, &'s
             ),
             "a forward model with a smaller error on this feature",
         )
+    }
+}
+
+/// The model-only verdicts of a claim set `model` (CAI through the chained forward model h
+/// steps on), three-valued with the data's one sure answer: "drives" where the model claims
+/// it, "does not" where the data never shows the feature change, else undecided. Used
+/// beyond one step, where the data's own test answers a different question than the
+/// simulator's (it measures a(t)'s effect through everything the babbler does next, the
+/// truth with the later commands held fixed).
+pub fn model_only_claims(method: &str, model: &EdgeClaims, data: &DataTest) -> EdgeClaims {
+    let mut claims = model.clone();
+    claims.method = method.to_owned();
+    let decisions = (0..claims.action_names.len())
+        .map(|a| {
+            (0..claims.state_names.len())
+                .map(|k| model_only_decision(&mut claims, data, a, k))
+                .collect()
+        })
+        .collect();
+    claims.decisions = Some(decisions);
+    claims.rule = format!(
+        "drives where {} does; does not where the data never shows the feature change; else undecided. {}",
+        model.method, model.rule
+    );
+    claims
+}
+
+fn model_only_decision(claims: &mut EdgeClaims, data: &DataTest, a: usize, k: usize) -> Decision {
+    let state = &claims.state_names[k];
+    if !data.changes[k] {
+        claims.drives[a][k] = false;
+        return Decision {
+            verdict: Verdict::DoesNot,
+            source: "data".into(),
+            reason: format!("{state} never changed in {} transitions", data.rows),
+            to_decide: String::new(),
+        };
+    }
+    let score = claims.score[a][k];
+    if claims.drives[a][k] {
+        Decision {
+            verdict: Verdict::Drives,
+            source: "model".into(),
+            reason: format!("{}: {score:.2} x its threshold", claims.method),
+            to_decide: String::new(),
+        }
+    } else {
+        Decision {
+            verdict: Verdict::Undecided,
+            source: String::new(),
+            reason: format!("the model's evidence is {score:.2} x its threshold"),
+            to_decide: "a forward model whose error this many steps on is below the effect".into(),
+        }
     }
 }

@@ -9,7 +9,7 @@ use causal_arm_dataset::{Context, ContextReader, Dataset};
 use causal_arm_discovery::{DataTest, GrangerSettings};
 use causal_arm_scoring::EdgeClaims;
 
-use crate::decide::{ModelEvidence, default_claims};
+use crate::decide::{ModelEvidence, default_claims, discrete_actions};
 use crate::influence::{
     Effects, ErrorFloors, InfluenceSettings, Rule, UnionPart, bootstrap_interval, cai_effects,
     claims_by_context, error_pool, mean_change_error, threshold_claims, union_claims,
@@ -58,9 +58,7 @@ pub fn shap_and_cai_claims(
         parts: vec![&cai[0], &shap_err[0]],
         error: floors.per_context[0].clone(),
         mean_change_error: mean_change_error(data, &error_pool(data, settings)),
-        discrete: (0..data.action_width())
-            .map(|j| crate::influence::discrete_values(data, j).is_some())
-            .collect(),
+        discrete: discrete_actions(data),
     };
     let default = default_claims(
         &default_method(explanation.settings.method),

@@ -21,9 +21,12 @@ use rand::rngs::StdRng;
 use rand::seq::index::sample;
 use serde::Serialize;
 
+use causal_arm_discovery::{DataTest, GrangerSettings};
+
+use crate::decide::{ModelEvidence, default_claims, discrete_actions, model_only_claims};
 use crate::influence::{
     ActionDraws, Effects, ErrorFloors, InfluenceSettings, Probe, Rule, check, claims_by_context,
-    error_floor,
+    error_floor, mean_change_error,
 };
 use crate::{ExplainError, Explainer, Result, forward_inputs};
 
@@ -42,37 +45,6 @@ pub fn check_horizon(horizon: usize) -> Result<()> {
     Err(ExplainError::Options(format!(
         "the horizon must be 1 to {MAX_HORIZON} steps of the chained forward model, got {horizon}"
     )))
-}
-
-/// Whether row `r + 1` continues row `r`: same episode, the next step, and its s(t) is the
-/// s(t+1) of row `r` (a dropped message leaves a hole the chain must not jump).
-fn continues(data: &Dataset, r: usize) -> bool {
-    r + 1 < data.rows()
-        && data.episodes[r + 1] == data.episodes[r]
-        && data.steps[r + 1] == data.steps[r].wrapping_add(1)
-        && data.state(r + 1) == data.next_state(r)
-}
-
-/// Per row, the number of consecutive transitions of its episode that start at it (itself
-/// included): a chain of h steps from row r is possible when `reach[r] ≥ h`.
-pub fn chain_reach(data: &Dataset) -> Vec<usize> {
-    let mut reach = vec![1; data.rows()];
-    for r in (0..data.rows().saturating_sub(1)).rev() {
-        if continues(data, r) {
-            reach[r] = reach[r + 1] + 1;
-        }
-    }
-    reach
-}
-
-/// Rows from which the model can be chained `horizon` steps inside one episode.
-pub fn chainable_rows(data: &Dataset, horizon: usize) -> Vec<usize> {
-    chain_reach(data)
-        .iter()
-        .enumerate()
-        .filter(|&(_, &reach)| reach >= horizon)
-        .map(|(r, _)| r)
-        .collect()
 }
 
 /// Chains the model `horizon` steps: step 1 from the input rows `first` (`[state ++
@@ -138,7 +110,7 @@ fn observation_rows(
     settings: &InfluenceSettings,
     horizon: usize,
 ) -> Result<(Vec<usize>, StdRng)> {
-    let candidates = chainable_rows(data, horizon);
+    let candidates = data.chainable_rows(horizon);
     if candidates.len() < settings.observations {
         return Err(ExplainError::Options(format!(
             "only {} of the data's {} transitions start {horizon} consecutive transitions inside an episode; {} observations need more (lower --samples or --horizon, or give a longer bag)",
@@ -194,6 +166,21 @@ pub fn chained_cai_effects(
     Ok(effects)
 }
 
+/// Up to `settings.error_rows` rows (seeded) that start `horizon` consecutive transitions:
+/// where the chained model's error and the mean change it is compared with are measured.
+fn chained_pool(data: &Dataset, settings: &InfluenceSettings, horizon: usize) -> Vec<usize> {
+    let candidates = data.chainable_rows(horizon);
+    let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
+    sample(
+        &mut rng,
+        candidates.len(),
+        settings.error_rows.min(candidates.len()),
+    )
+    .into_iter()
+    .map(|i| candidates[i])
+    .collect()
+}
+
 /// The chained model's own error after h steps, for every h = 1..=`horizon` and every
 /// context of the data's experiment ([`feature_error`](crate::influence::feature_error)'s
 /// floor of the prediction of s(t+h) from s(t) and the recorded actions, as the mental
@@ -206,16 +193,7 @@ pub fn chained_error_floors(
     horizon: usize,
 ) -> Result<Vec<ErrorFloors>> {
     check_horizon(horizon)?;
-    let candidates = chainable_rows(data, horizon);
-    let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
-    let pool: Vec<usize> = sample(
-        &mut rng,
-        candidates.len(),
-        settings.error_rows.min(candidates.len()),
-    )
-    .into_iter()
-    .map(|i| candidates[i])
-    .collect();
+    let pool = chained_pool(data, settings, horizon);
     let reader = ContextReader::new(data.experiment);
     let members: Vec<Vec<usize>> = Context::of(data.experiment)
         .iter()
@@ -264,8 +242,17 @@ pub struct HorizonResult {
     /// The chained model's h-step error per context, `[context][state]` (the floor the
     /// verdicts compare with; `null` for a feature the data never changes).
     pub error_floor: Vec<Vec<f64>>,
-    /// Verdicts per context (`all` first): score = mean effect / h-step error, interval its
-    /// 95 % bootstrap interval, drives = lower bound > κ.
+    /// The verdicts at this horizon ([`DEFAULT_METHOD`], context `all`, three-valued): at
+    /// h = 1 the one-step default (the data's test first, the model's CAI where it is
+    /// undecided); beyond, CAI through the chained model ([`model_only_claims`]).
+    pub default: EdgeClaims,
+    /// The data's own test of a(t) on s(t+h) − s(t) (`data`, context `all`, three-valued),
+    /// beside the model's verdicts. Not a verdict of the product: motor babbling draws a(t)
+    /// at random, but the state has no joint velocities, so h steps on a(t) also stands for
+    /// the motion it shares with what follows (docs/RESULTS.md, "Multi-step edges").
+    pub data: EdgeClaims,
+    /// CAI verdicts per context (`all` first): score = mean effect / h-step error, interval
+    /// its 95 % bootstrap interval, drives = lower bound > κ.
     pub claims: Vec<EdgeClaims>,
 }
 
@@ -320,8 +307,12 @@ fn context_means(data: &Dataset, effects: &Effects) -> Vec<Vec<Vec<f64>>> {
         .collect()
 }
 
+/// Name of the multi-step verdicts.
+pub const DEFAULT_METHOD: &str = "cai+data";
+
 /// CAI through the chained forward model for horizons 1..=`horizon`: effects, the chained
-/// model's h-step error floors and the error-ratio verdicts per horizon and context.
+/// model's h-step error floors, the error-ratio verdicts per horizon and context, the
+/// three-valued verdicts per horizon, and the data's own h-step test beside them.
 pub fn multistep_cai(
     explainer: &Explainer,
     data: &Dataset,
@@ -331,35 +322,47 @@ pub fn multistep_cai(
     let started = std::time::Instant::now();
     let effects = chained_cai_effects(explainer, data, settings, horizon)?;
     let floors = chained_error_floors(explainer, data, settings, horizon)?;
-    let horizons = effects
-        .iter()
-        .zip(&floors)
-        .enumerate()
-        .map(|(i, (effects, floors))| {
-            let h = i + 1;
-            let mut claims =
-                claims_by_context(explainer, data, effects, settings, Rule::ErrorRatio(floors));
-            for c in &mut claims {
-                c.horizon = h;
-                c.rule = format!(
-                    "{}, chained {h} step{} (recorded actions after a_j(t))",
-                    c.rule,
-                    if h == 1 { "" } else { "s" }
-                );
-            }
-            HorizonResult {
-                horizon: h,
-                mean_effect: context_means(data, effects),
-                error_floor: floors.per_context.clone(),
-                claims,
-            }
-        })
-        .collect();
+    let pool = chained_pool(data, settings, horizon);
+    let mut horizons = Vec::with_capacity(horizon);
+    for (i, (effects, floors)) in effects.iter().zip(&floors).enumerate() {
+        let h = i + 1;
+        let mut claims =
+            claims_by_context(explainer, data, effects, settings, Rule::ErrorRatio(floors));
+        for c in &mut claims {
+            c.horizon = h;
+            c.rule = format!(
+                "{}, chained {h} step{} (recorded actions after a_j(t))",
+                c.rule,
+                if h == 1 { "" } else { "s" }
+            );
+        }
+        let data_test = DataTest::run_ahead(data, h, &GrangerSettings::data_test())
+            .map_err(|e| ExplainError::Options(format!("the data test at h = {h}: {e}")))?;
+        let default = if h == 1 {
+            let evidence = ModelEvidence {
+                parts: vec![&claims[0]],
+                error: floors.per_context[0].clone(),
+                mean_change_error: mean_change_error(data, &pool),
+                discrete: discrete_actions(data),
+            };
+            default_claims(DEFAULT_METHOD, &data_test, &evidence, settings.kappa)
+        } else {
+            model_only_claims(DEFAULT_METHOD, &claims[0], &data_test)
+        };
+        horizons.push(HorizonResult {
+            horizon: h,
+            mean_effect: context_means(data, effects),
+            error_floor: floors.per_context.clone(),
+            default,
+            data: data_test.claims("data"),
+            claims,
+        });
+    }
     Ok(MultiStep {
         horizon,
         settings: settings.clone(),
         observations: effects.first().map_or(0, |e| e.rows.len()),
-        chainable_rows: chainable_rows(data, horizon).len(),
+        chainable_rows: data.chainable_rows(horizon).len(),
         contexts: Context::of(data.experiment)
             .iter()
             .map(|c| c.name.to_owned())
@@ -389,9 +392,14 @@ pub struct PairPoint {
 }
 
 impl MultiStep {
-    /// Every claim set, horizon by horizon (`all` first within each).
+    /// Every claim set, horizon by horizon: the default, CAI's (`all` first), the data
+    /// test's.
     pub fn claims(&self) -> impl Iterator<Item = &EdgeClaims> {
-        self.horizons.iter().flat_map(|h| &h.claims)
+        self.horizons.iter().flat_map(|h| {
+            std::iter::once(&h.default)
+                .chain(&h.claims)
+                .chain(std::iter::once(&h.data))
+        })
     }
 
     /// The curve of `action → state` over the horizons in `context`; `None` for unknown
@@ -599,12 +607,12 @@ mod tests {
     fn chains_stay_inside_episodes_and_skip_holes() {
         let data = episodes();
         // Episode 0: rows 0..30; episode 1: steps 0..=11 at rows 30..42, 13..=29 at 42..59.
-        let reach = chain_reach(&data);
+        let reach = data.chain_reach();
         assert_eq!(reach[0], 30);
         assert_eq!(reach[29], 1, "the last row of episode 0 reaches no further");
         assert_eq!((reach[30], reach[41]), (12, 1), "the hole ends the chain");
         assert_eq!((reach[42], reach[58]), (17, 1));
-        let rows = chainable_rows(&data, 5);
+        let rows = data.chainable_rows(5);
         assert!(rows.iter().all(|&r| reach[r] >= 5));
         assert!(!rows.contains(&26) && rows.contains(&25) && !rows.contains(&38));
 

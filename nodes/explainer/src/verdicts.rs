@@ -27,10 +27,11 @@ pub fn union_method(method: crate::Method) -> String {
     format!("{method}+cai")
 }
 
-/// The data's own test on `data` (the default settings), as the explainer runs it.
-pub fn data_test(data: &Dataset) -> Result<DataTest> {
-    DataTest::run(data, &GrangerSettings::data_test())
-        .map_err(|e| ExplainError::Options(format!("the data test: {e}")))
+/// The data's own test on `data` as the explainer runs it (the default settings), h steps
+/// on (1: the one-step change).
+pub fn data_test(data: &Dataset, horizon: usize) -> Result<DataTest> {
+    DataTest::run_ahead(data, horizon, &GrangerSettings::data_test())
+        .map_err(|e| ExplainError::Options(format!("the data test at h = {horizon}: {e}")))
 }
 
 /// The claim sets of a SHAP run, the default (`<method>+cai+data`, context `all`, three
@@ -53,7 +54,7 @@ pub fn shap_and_cai_claims(
     let shap_err = claims_by_context(explainer, data, &effects, settings, rule);
     let cai_effects = cai_effects(explainer, data, settings)?;
     let cai = claims_by_context(explainer, data, &cai_effects, settings, rule);
-    let data_test = data_test(data)?;
+    let data_test = data_test(data, 1)?;
     let evidence = ModelEvidence {
         parts: vec![&cai[0], &shap_err[0]],
         error: floors.per_context[0].clone(),

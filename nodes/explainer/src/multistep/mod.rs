@@ -21,8 +21,6 @@ use rand::rngs::StdRng;
 use rand::seq::index::sample;
 use serde::Serialize;
 
-use causal_arm_discovery::{DataTest, GrangerSettings};
-
 use crate::decide::{ModelEvidence, default_claims, discrete_actions, model_only_claims};
 use crate::influence::{
     ActionDraws, Effects, ErrorFloors, InfluenceSettings, Probe, Rule, check, claims_by_context,
@@ -336,8 +334,7 @@ pub fn multistep_cai(
                 if h == 1 { "" } else { "s" }
             );
         }
-        let data_test = DataTest::run_ahead(data, h, &GrangerSettings::data_test())
-            .map_err(|e| ExplainError::Options(format!("the data test at h = {h}: {e}")))?;
+        let data_test = crate::verdicts::data_test(data, h)?;
         let default = if h == 1 {
             let evidence = ModelEvidence {
                 parts: vec![&claims[0]],

@@ -170,7 +170,7 @@ fn urdf(data: &[u8]) {
 fn model_set() -> &'static ModelSet {
     static MODELS: OnceLock<ModelSet> = OnceLock::new();
     MODELS.get_or_init(|| {
-        ModelSet::load(&corpus_root().join("trainer_model"), "fm", "im-mono")
+        ModelSet::load(&corpus_root().join("trainer_model"), "fm", "im-mono", false)
             .expect("tests/corpus/trainer_model loads")
     })
 }

@@ -244,6 +244,13 @@ def test_node_refuses_missing_and_corrupt_model_dirs(causal_arm_bin, model_dir, 
     r = subprocess.run([str(binary), "--ros-args", "-p", f"model_dir:={model_dir}", "-p", "forward_model:=im-pre"],
                        capture_output=True, text=True, timeout=30)
     assert r.returncode != 0 and 'no forward model "im-pre"' in r.stderr, r.stderr
+    # An inverse model named explicitly must exist too: the node refuses to start, naming
+    # the parameter and the models the directory holds.
+    r = subprocess.run([str(binary), "--ros-args", "-p", f"model_dir:={model_dir}", "-p", "inverse_model:=nope"],
+                       capture_output=True, text=True, timeout=30)
+    assert r.returncode != 0, r.stderr
+    assert 'no inverse model "nope"' in r.stderr and "inverse_model" in r.stderr, r.stderr
+    assert "found: fm, im-mono" in r.stderr, r.stderr
 
 
 def test_cli_service_call_gets_the_same_reply(run_cli, trainer_node, model_dir, clients):

@@ -100,7 +100,7 @@ impl ForwardModel for TrainedFm {
 /// The models of `dir` with `name` described as the set's inverse model (so a model names
 /// its own outputs), which must be `experiment`'s.
 fn load_for(dir: &Path, name: &str, experiment: Experiment) -> anyhow::Result<ModelSet> {
-    let models = ModelSet::load(dir, name, name)
+    let models = ModelSet::load(dir, name, name, true)
         .with_context(|| format!("loading the models in {}", dir.display()))?;
     if models.experiment() != experiment {
         bail!(

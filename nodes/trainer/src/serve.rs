@@ -89,8 +89,15 @@ fn to_f32(values: &[f64]) -> Vec<f32> {
 
 impl ModelSet {
     /// Loads every model in `dir` (each `<name>.json` + `<name>.safetensors`) and picks the
-    /// forward and inverse models the prediction services use.
-    pub fn load(dir: &Path, forward: &str, inverse: &str) -> Result<Self, TrainError> {
+    /// forward and inverse models the prediction services use. A missing inverse model is
+    /// refused when `inverse_required` (the user named it), else only warned about
+    /// (a directory may hold forward models only).
+    pub fn load(
+        dir: &Path,
+        forward: &str,
+        inverse: &str,
+        inverse_required: bool,
+    ) -> Result<Self, TrainError> {
         let file_err = |problem: String| TrainError::File {
             path: dir.to_owned(),
             problem,
@@ -112,6 +119,11 @@ impl ModelSet {
         if !models.contains_key(forward) {
             return Err(file_err(format!(
                 "no forward model {forward:?} (found: {found})"
+            )));
+        }
+        if !models.contains_key(inverse) && inverse_required {
+            return Err(file_err(format!(
+                "no inverse model {inverse:?} (found: {found}); name one of those as inverse_model, or leave it at its default"
             )));
         }
         if !models.contains_key(inverse) {

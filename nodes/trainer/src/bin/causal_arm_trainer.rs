@@ -16,6 +16,7 @@ use causal_arm_msgs::srv::{GetModelInfo, PredictAction, PredictNextState, Rollou
 use causal_arm_node::replies::Replies;
 use causal_arm_node::run::{node_main, serve_until_stopped, stop_flag};
 use causal_arm_node::{RosArgs, RosNode, server_param_specs};
+use causal_arm_protocol::graph::server_default_text;
 use causal_arm_trainer::fit::ProgressLog;
 use causal_arm_trainer::job::train_and_save;
 use causal_arm_trainer::serve::ModelSet;
@@ -53,10 +54,16 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
             result => result?,
         }
     }
+    // The default inverse model may be absent (a directory of forward models); one the
+    // user named must exist.
+    let inverse = node.params().string("inverse_model");
+    let default_inverse =
+        server_default_text("causal_arm_trainer", "inverse_model").trim_matches('"');
     let models = ModelSet::load(
         std::path::Path::new(&dir),
         node.params().string("forward_model"),
-        node.params().string("inverse_model"),
+        inverse,
+        inverse != default_inverse,
     )?;
     serve(&mut node, &models, &dir, &stop)
 }

@@ -118,16 +118,7 @@ impl Dataset {
     /// The one-step change s(t+1) − s(t) of transition `i`, in f64 (exact for f32 states),
     /// Euler angles wrapped into (−π, π]: what an action causes, in the feature's unit.
     pub fn change(&self, i: usize) -> Vec<f64> {
-        let angular = angular_features(self.experiment);
-        self.next_state(i)
-            .iter()
-            .zip(self.state(i))
-            .zip(&angular)
-            .map(|((&next, &now), &angle)| {
-                let d = next as f64 - now as f64;
-                if angle { wrap_angle(d) } else { d }
-            })
-            .collect()
+        self.change_ahead(i, 1)
     }
 
     /// The change s(t+h) − s(t) from transition `i` over `horizon` consecutive transitions

@@ -15,6 +15,17 @@ const EF_X: usize = 7;
 const EF_Y: usize = 8;
 const EF_Z: usize = 9;
 
+/// Appends step `i` of episode 0 (empty-handed): s(t), s(t+1) and a(t).
+fn push_step(data: &mut Dataset, i: usize, state: &[f32], next: &[f32], a: &[f32]) {
+    data.states.extend(state);
+    data.next_states.extend(next);
+    data.actions.extend(a);
+    data.episodes.push(0);
+    data.holding.push(0);
+    data.steps.push(i as u32);
+    data.stamps_ns.push(i as u64);
+}
+
 fn hand_built(rows: usize, seed: u64) -> Dataset {
     let mut rng = StdRng::seed_from_u64(seed);
     let action = Normal::new(0.0, 0.05).unwrap();
@@ -32,13 +43,7 @@ fn hand_built(rows: usize, seed: u64) -> Dataset {
         next[EF_X] = (state[EF_X] as f64 + a[1] as f64 * theta3 + noise.sample(&mut rng)) as f32;
         next[EF_Y] = (state[EF_Y] as f64 + 0.5 * a[0] as f64 + noise.sample(&mut rng)) as f32;
         next[EF_Z] = (state[EF_Z] as f64 + noise.sample(&mut rng)) as f32;
-        data.states.extend(&state);
-        data.next_states.extend(&next);
-        data.actions.extend(&a);
-        data.episodes.push(0);
-        data.holding.push(0);
-        data.steps.push(i as u32);
-        data.stamps_ns.push(i as u64);
+        push_step(&mut data, i, &state, &next, &a);
     }
     data
 }
@@ -164,13 +169,7 @@ fn random_walk(rows: usize, seed: u64) -> Dataset {
             next[j] = 0.95 * state[j] + own + drift.sample(&mut rng) as f32;
         }
         next[EF_X] = next[0] + next[1] + next[2];
-        data.states.extend(&state);
-        data.next_states.extend(&next);
-        data.actions.extend(&a);
-        data.episodes.push(0);
-        data.holding.push(0);
-        data.steps.push(i as u32);
-        data.stamps_ns.push(i as u64);
+        push_step(&mut data, i, &state, &next, &a);
         state = next;
     }
     data

@@ -58,7 +58,7 @@ pub fn shap_and_cai_claims(
     let evidence = ModelEvidence {
         parts: vec![&cai[0], &shap_err[0]],
         error: floors.per_context[0].clone(),
-        mean_change_error: mean_change_error(data, &error_pool(data, settings)),
+        mean_change_error: mean_change_error(data, &error_pool(data, settings, 1)),
         discrete: discrete_actions(data),
     };
     let default = default_claims(

@@ -121,12 +121,12 @@ impl ModelSet {
                 "no forward model {forward:?} (found: {found})"
             )));
         }
-        if !models.contains_key(inverse) && inverse_required {
-            return Err(file_err(format!(
-                "no inverse model {inverse:?} (found: {found}); name one of those as inverse_model, or leave it at its default"
-            )));
-        }
         if !models.contains_key(inverse) {
+            if inverse_required {
+                return Err(file_err(format!(
+                    "no inverse model {inverse:?} (found: {found}); name one of those as inverse_model, or leave it at its default"
+                )));
+            }
             tracing::warn!(
                 "no inverse model {inverse:?} in {} (found: {found}); predict_action will refuse requests",
                 dir.display()

@@ -109,7 +109,7 @@ impl ErrorFloors {
         data: &Dataset,
         settings: &InfluenceSettings,
     ) -> Result<Self> {
-        let pool = error_pool(data, settings);
+        let pool = error_pool(data, settings, 1);
         let reader = ContextReader::new(data.experiment);
         let scale = crate::change_scale(data);
         let per_context = Context::of(data.experiment)
@@ -128,10 +128,20 @@ impl ErrorFloors {
     }
 }
 
-/// The seeded rows a model's error is measured on (at most `settings.error_rows`).
-pub fn error_pool(data: &Dataset, settings: &InfluenceSettings) -> Vec<usize> {
+/// The seeded rows a model's error is measured on (at most `settings.error_rows`), among
+/// those that start `horizon` consecutive transitions (1: every row), so a chained model's
+/// h-step error and the mean change it is compared with share them.
+pub fn error_pool(data: &Dataset, settings: &InfluenceSettings, horizon: usize) -> Vec<usize> {
+    let candidates = data.chainable_rows(horizon);
     let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
-    sample(&mut rng, data.rows(), settings.error_rows.min(data.rows())).into_vec()
+    sample(
+        &mut rng,
+        candidates.len(),
+        settings.error_rows.min(candidates.len()),
+    )
+    .into_iter()
+    .map(|i| candidates[i])
+    .collect()
 }
 
 /// Per feature, the mean absolute error of predicting each transition's change by the

@@ -24,7 +24,7 @@ use serde::Serialize;
 use crate::decide::{ModelEvidence, default_claims, discrete_actions, model_only_claims};
 use crate::influence::{
     ActionDraws, Effects, ErrorFloors, InfluenceSettings, Probe, Rule, check, claims_by_context,
-    error_floor, mean_change_error,
+    error_floor, error_pool, mean_change_error,
 };
 use crate::{ExplainError, Explainer, Result, forward_inputs};
 
@@ -164,21 +164,6 @@ pub fn chained_cai_effects(
     Ok(effects)
 }
 
-/// Up to `settings.error_rows` rows (seeded) that start `horizon` consecutive transitions:
-/// where the chained model's error and the mean change it is compared with are measured.
-fn chained_pool(data: &Dataset, settings: &InfluenceSettings, horizon: usize) -> Vec<usize> {
-    let candidates = data.chainable_rows(horizon);
-    let mut rng = StdRng::seed_from_u64(settings.seed ^ 0xE770);
-    sample(
-        &mut rng,
-        candidates.len(),
-        settings.error_rows.min(candidates.len()),
-    )
-    .into_iter()
-    .map(|i| candidates[i])
-    .collect()
-}
-
 /// The chained model's own error after h steps, for every h = 1..=`horizon` and every
 /// context of the data's experiment ([`feature_error`](crate::influence::feature_error)'s
 /// floor of the prediction of s(t+h) from s(t) and the recorded actions, as the mental
@@ -191,7 +176,7 @@ pub fn chained_error_floors(
     horizon: usize,
 ) -> Result<Vec<ErrorFloors>> {
     check_horizon(horizon)?;
-    let pool = chained_pool(data, settings, horizon);
+    let pool = error_pool(data, settings, horizon);
     let reader = ContextReader::new(data.experiment);
     let members: Vec<Vec<usize>> = Context::of(data.experiment)
         .iter()
@@ -320,7 +305,7 @@ pub fn multistep_cai(
     let started = std::time::Instant::now();
     let effects = chained_cai_effects(explainer, data, settings, horizon)?;
     let floors = chained_error_floors(explainer, data, settings, horizon)?;
-    let pool = chained_pool(data, settings, horizon);
+    let pool = error_pool(data, settings, horizon);
     let mut horizons = Vec::with_capacity(horizon);
     for (i, (effects, floors)) in effects.iter().zip(&floors).enumerate() {
         let h = i + 1;

@@ -57,8 +57,7 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     // The default inverse model may be absent (a directory of forward models); one the
     // user named must exist.
     let inverse = node.params().string("inverse_model");
-    let default_inverse =
-        server_default_text("causal_arm_trainer", "inverse_model").trim_matches('"');
+    let default_inverse = server_default_text("causal_arm_trainer", "inverse_model");
     let models = ModelSet::load(
         std::path::Path::new(&dir),
         node.params().string("forward_model"),

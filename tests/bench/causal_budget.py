@@ -109,21 +109,25 @@ def prepare_bag(exp, steps, work, seed):
     return bag, truth, timings, results, seconds
 
 
-def model_cell(exp, bag, truth, budget, work, reuse):
+def model_cell(exp, bag, truth, budget, work, reuse, reexplain):
     """Train the forward model at `budget` and explain it: the default verdicts. With
     `reuse`, a cell explained before is scored again without training or explaining (its
-    recorded wall times kept in timings.json)."""
+    recorded wall times kept in timings.json); with `reexplain`, a model trained before is
+    explained again (its recorded training time kept), for verdict rules that changed."""
     model = work / f"model-{budget}"
     claims = model / "explain-kernel" / "claims.json"
     recorded = model / "timings.json"
     if reuse and claims.exists() and recorded.exists():
-        timings = json.loads(recorded.read_text())
+        return json.loads(recorded.read_text()), scores(
+            claims, truth, model / "explain-kernel" / "scores_all.json")
+    if reexplain and (model / "fm.safetensors").exists() and recorded.exists():
+        timings = {"train": json.loads(recorded.read_text())["train"]}
     else:
         timings = {"train": run([BIN, "train", "--bag", bag, "--model", "fm", "--profile", "quick",
                                  "--max-folds", "1", "--out", model, *BUDGETS[budget]])}
-        timings["explain"] = run([BIN, "explain", "--model", model, "--bag", bag, "--method",
-                                  "kernel", "--no-pair-plots", "--truth", truth])
-        recorded.write_text(json.dumps(timings))
+    timings["explain"] = run([BIN, "explain", "--model", model, "--bag", bag, "--method",
+                              "kernel", "--no-pair-plots", "--truth", truth])
+    recorded.write_text(json.dumps(timings))
     return timings, scores(claims, truth, model / "explain-kernel" / "scores_all.json")
 
 
@@ -198,6 +202,9 @@ def main():
     ap.add_argument("--markdown", action="store_true", help="with --table: as the RESULTS table")
     ap.add_argument("--reuse-models", action="store_true",
                     help="score cells already trained and explained (in --work) without redoing them")
+    ap.add_argument("--reexplain", action="store_true",
+                    help="explain models already trained (in --work) again, keeping their recorded "
+                         "training time: for a change of the verdict rules")
     args = ap.parse_args()
     record = pathlib.Path(args.record)
     if args.table:
@@ -220,14 +227,16 @@ def main():
     if not BIN.exists():
         sys.exit(f"error: {BIN} missing; build it with `cargo build --release -p causal-arm`")
     rows = []
-    command = " ".join([sys.argv[0], "--cells", args.cells, "--budgets", args.budgets, "--seed", args.seed])
+    command = " ".join([sys.argv[0], "--cells", args.cells, "--budgets", args.budgets, "--seed", args.seed]
+                       + (["--reexplain"] if args.reexplain else []))
     for exp, steps in cells:
         work = pathlib.Path(args.work) / f"{exp}_{steps}_seed{args.seed}"
         work.mkdir(parents=True, exist_ok=True)
         bag, truth, timings, results, seconds = prepare_bag(exp, steps, work, args.seed)
         seconds["data"] = timings["data"]
         for budget in budgets:
-            cell_timings, cell_scores = model_cell(exp, bag, truth, budget, work, args.reuse_models)
+            cell_timings, cell_scores = model_cell(exp, bag, truth, budget, work, args.reuse_models,
+                                                   args.reexplain)
             row = {"exp": exp, "steps": steps, "budget": budget, "seed": args.seed,
                    "scores": {**results, **{m: s for m, s in cell_scores.items()
                                             if m in (DEFAULT, "kernel+cai", "kernel/err", "cai/err")}},

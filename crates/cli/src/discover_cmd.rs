@@ -19,9 +19,10 @@ pub struct DiscoverArgs {
     /// Bag(s) or shard sets of one experiment.
     #[arg(long = "bag", required = true)]
     bags: Vec<PathBuf>,
-    /// Action columns: realized or commanded.
-    #[arg(long, default_value = "realized", value_parser = choice::<ActionSource>())]
-    action: ActionSource,
+    /// Action columns: realized or commanded (default: realized on the kinematic arm's
+    /// bags, commanded on the dynamic arm's, from the bag's custom_data).
+    #[arg(long, value_parser = choice::<ActionSource>())]
+    action: Option<ActionSource>,
     /// Family-wise error rate of the data test over all action × state pairs.
     #[arg(allow_negative_numbers = true, long, default_value_t = GrangerSettings::data_test().alpha)]
     alpha: f64,
@@ -54,7 +55,11 @@ pub fn run(args: &DiscoverArgs) -> anyhow::Result<()> {
         .map(causal_arm_truth::load)
         .transpose()?;
     let cache = Cache::new(args.cache.clone().unwrap_or_else(Cache::default_dir));
-    let (data, _) = load_bags(&args.bags, None, args.action, Some(&cache))?;
+    let action = match args.action {
+        Some(action) => action,
+        None => ActionSource::of_bags(&args.bags)?,
+    };
+    let (data, _) = load_bags(&args.bags, None, action, Some(&cache))?;
     if let Some(truth) = &truth {
         let names = causal_arm_dataset::action_names(data.experiment);
         check_names(

@@ -49,9 +49,10 @@ pub struct TrainArgs {
     /// Refuse bags that are not this experiment (default: whatever the first bag holds).
     #[arg(long, value_parser = choice::<Experiment>())]
     experiment: Option<Experiment>,
-    /// Action vector: realized (θ(t+1) − θ(t), the paper's) or commanded deltas.
-    #[arg(long, default_value = "realized", value_parser = choice::<ActionSource>())]
-    action: ActionSource,
+    /// Action vector: realized (θ(t+1) − θ(t), the paper's) or commanded deltas (default:
+    /// realized on the kinematic arm's bags, commanded on the dynamic arm's).
+    #[arg(long, value_parser = choice::<ActionSource>())]
+    action: Option<ActionSource>,
     /// Forward-model output: delta (s(t+1) − s(t), added back) or absolute.
     #[arg(long, default_value = "delta", value_parser = choice::<FmTarget>())]
     fm_target: FmTarget,
@@ -211,7 +212,11 @@ struct CheckedArgs {
 /// Parses and checks every option of `args` (all but the graph, which needs the data's
 /// experiment) into the trainer's options.
 fn checked_options(args: &TrainArgs) -> anyhow::Result<CheckedArgs> {
-    let (profile, action, fm_target) = (args.profile, args.action, args.fm_target);
+    let (profile, fm_target) = (args.profile, args.fm_target);
+    let action = match args.action {
+        Some(action) => action,
+        None => ActionSource::of_bags(&args.bags)?,
+    };
     let lr_schedule: LrSchedule = args.lr_schedule.parse().map_err(anyhow::Error::msg)?;
     let expected = args.experiment;
     let requested = args.model.one();

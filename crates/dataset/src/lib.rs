@@ -37,6 +37,42 @@ causal_arm_protocol::choice!(ActionSource, "action source", [
     ActionSource::Commanded => "commanded",
 ]);
 
+impl ActionSource {
+    /// The action a causal question about `bags` should be asked of: on the kinematic arm
+    /// the realized joint change (the paper's), which equals the command up to the
+    /// velocity limit; on the dynamic arm the command, because there the realized change
+    /// is an outcome of the command, the motors and the other joints, and the simulator's
+    /// truth intervenes on the command (with realized actions the data test denied 17–41
+    /// true command couplings, docs/RESULTS.md). A bag written before the dynamic arm
+    /// existed is kinematic. Bags of both arms together are refused.
+    pub fn of_bags(bags: &[PathBuf]) -> Result<Self, DatasetError> {
+        let mut found: Option<(Self, PathBuf)> = None;
+        for bag in cache::expand_shard_sets(bags)? {
+            let arm = causal_arm_bag::BagReader::open(&bag)?
+                .custom_data()
+                .get(causal_arm_protocol::bag_keys::ARM)
+                .cloned();
+            let source = match arm.as_deref() {
+                Some("dynamic") => Self::Commanded,
+                _ => Self::Realized,
+            };
+            match &found {
+                Some((first, at)) if *first != source => {
+                    return Err(DatasetError::Mixed(format!(
+                        "{} and {} were recorded with different arms (custom_data {}): give --action",
+                        at.display(),
+                        bag.display(),
+                        causal_arm_protocol::bag_keys::ARM
+                    )));
+                }
+                Some(_) => {}
+                None => found = Some((source, bag)),
+            }
+        }
+        Ok(found.map_or(Self::Realized, |(source, _)| source))
+    }
+}
+
 /// Transitions of one experiment, row-major f32 matrices with one row per transition.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dataset {

@@ -232,3 +232,37 @@ fn holes_and_gaps_are_named() {
         .to_string();
     assert!(err.contains("missing"), "{err}");
 }
+
+#[test]
+fn the_default_action_follows_the_arm_the_bag_was_recorded_with() {
+    let dir = tempdir("arm-action");
+    let kinematic = bag(&dir, Experiment::Exp1, 1, 20);
+    let dynamic = dir.join("dynamic");
+    let mut options = GenerateOptions::new(
+        Experiment::Exp1,
+        RunPlan {
+            episodes: 1,
+            steps_per_episode: 20,
+        },
+        3,
+        &dynamic,
+    );
+    options.sim.arm = causal_arm_sim::ArmMode::Dynamic;
+    generate(&options, &mut |_, _| {}).unwrap();
+    assert_eq!(
+        ActionSource::of_bags(std::slice::from_ref(&kinematic)).unwrap(),
+        ActionSource::Realized
+    );
+    assert_eq!(
+        ActionSource::of_bags(std::slice::from_ref(&dynamic)).unwrap(),
+        ActionSource::Commanded
+    );
+    let mixed = ActionSource::of_bags(&[kinematic.clone(), dynamic.clone()])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        mixed.contains("different arms") && mixed.contains("--action"),
+        "{mixed}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -21,9 +21,18 @@ pub enum Terms {
     /// moves the tool by the Jacobian of the pose it is in).
     Interaction,
     /// As `Interaction`, and a_j²: effects of either sign of a_j alike, and the three
-    /// levels of a discrete command (the magnet's −1, 0, +1).
+    /// levels of a discrete command (the magnet's −1, 0, +1); and hinges max(0, a_j − q) at
+    /// [`HINGE_QUANTILES`] of a_j: a response that saturates, as a velocity-limited joint
+    /// moves at most its limit × dt however far the command reaches (the dynamic arm's
+    /// joint 6: 0.87 × the command, flat beyond 0.098 rad). Without them the own joint's
+    /// misfit leaks into the blocks of the actions the scripted phases move along with it:
+    /// on a 50,000-step dynamic-arm bag every a_i → θ6 (i < 6) was claimed at z = 8–19,
+    /// against a truth of no effect.
     Full,
 }
+
+/// Quantiles of an action at which [`Terms::Full`] puts its hinges.
+pub const HINGE_QUANTILES: [f64; 4] = [0.05, 0.2, 0.8, 0.95];
 
 /// The design matrix and where each action's block lies in it.
 pub(crate) struct Design {
@@ -62,6 +71,7 @@ impl Design {
                 let mut block = Vec::new();
                 if terms == Terms::Full {
                     block.extend(standardized(a.iter().map(|v| v * v).collect()));
+                    block.extend(hinges(&a).into_iter().filter_map(standardized));
                 }
                 if terms != Terms::Linear {
                     for z in &state {
@@ -93,6 +103,24 @@ impl Design {
         let x = all.select_columns(&kept);
         Self { x, blocks }
     }
+}
+
+/// The hinge columns max(0, a − q) of action column `a` at its [`HINGE_QUANTILES`] (one
+/// per distinct knot; a discrete command's hinges repeat its levels and are dropped as
+/// dependent).
+fn hinges(a: &[f64]) -> Vec<Vec<f64>> {
+    let mut sorted = a.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let mut knots: Vec<f64> = HINGE_QUANTILES
+        .iter()
+        .filter_map(|q| sorted.get(((sorted.len().max(1) - 1) as f64 * q) as usize))
+        .copied()
+        .collect();
+    knots.dedup();
+    knots
+        .into_iter()
+        .map(|knot| a.iter().map(|v| (v - knot).max(0.0)).collect())
+        .collect()
 }
 
 /// The state as controls and interaction partners, standardized: a plain feature as it is,

@@ -372,7 +372,9 @@ fn terms_words(terms: Terms) -> &'static str {
     match terms {
         Terms::Linear => "a_j alone, the state as control",
         Terms::Interaction => "a_j and a_j x s, the state as control",
-        Terms::Full => "a_j, a_j^2 and a_j x s, the state as control",
+        Terms::Full => {
+            "a_j, a_j^2, hinges of a_j at its 5, 20, 80 and 95 % quantiles and a_j x s, the state as control"
+        }
     }
 }
 

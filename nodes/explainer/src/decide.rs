@@ -10,16 +10,19 @@
 //!   the model has learned, whose error is well below predicting the mean change
 //!   ([`MAX_ERROR_RATIO`]), and only for a continuous action. An untrained or random model
 //!   has learned nothing and decides nothing. A discrete command switched in a few percent
-//!   of the rows (the magnet's) is probed by the model in states where the data rarely
-//!   switches it: there a model extrapolates what the babbler did around its switches (on
-//!   the exp2 quick bag, a 100-epoch FM's CAI "finds" a_mgt → ef_x, ef_y, ef_z, ef_rx,
-//!   ef_ry; the magnet moves no joint), so its claims stay undecided until the data
-//!   confirms them.
+//!   of the rows (the magnet's) is probed by CAI at random states mostly where the data
+//!   rarely switches it: there a model extrapolates what the babbler did around its
+//!   switches (on the exp2 quick bag, a 100-epoch FM's CAI "finds" a_mgt → ef_x, ef_y,
+//!   ef_z, ef_rx, ef_ry; the magnet moves no joint). For such an action only the in-support
+//!   evidence counts ([`crate::influence::switch_evidence`]): CAI where the data switched
+//!   it, above the model's answer on the negative controls.
 //! - Otherwise "undecided", with why and what would decide it.
 
 use causal_arm_dataset::Dataset;
 use causal_arm_discovery::DataTest;
 use causal_arm_scoring::{Decision, EdgeClaims, Verdict};
+
+use crate::influence::{SwitchEdge, SwitchEvidence};
 
 /// A model's evidence on a feature counts only where its error on the feature's next
 /// value is below this share of the error of predicting the mean one-step change. An
@@ -37,8 +40,10 @@ pub struct ModelEvidence<'a> {
     /// Per feature: MAE of predicting the mean one-step change.
     pub mean_change_error: Vec<f64>,
     /// Per action: whether it takes a few discrete values (the magnet command), on which
-    /// the model's evidence alone decides nothing.
+    /// only the in-support evidence `switches` decides.
     pub discrete: Vec<bool>,
+    /// The discrete actions' in-support evidence (none: their model claims stay undecided).
+    pub switches: Option<&'a SwitchEvidence>,
 }
 
 impl ModelEvidence<'_> {
@@ -55,6 +60,38 @@ impl ModelEvidence<'_> {
 
     fn learned(&self, k: usize) -> bool {
         self.error_ratio(k) < MAX_ERROR_RATIO
+    }
+
+    /// The 95 % interval of [`Self::deciding_score`], in the same unit.
+    fn deciding_interval(&self, a: usize, k: usize, kappa: f64) -> Option<[f64; 2]> {
+        if self.discrete[a] {
+            let e = self.switch(a, k)?;
+            Some(e.interval.map(|v| v / e.threshold))
+        } else {
+            let part = self.claim(a, k)?;
+            Some(part.interval.as_ref()?[a][k].map(|v| v / kappa))
+        }
+    }
+
+    /// The in-support evidence on (a, k) of a discrete action.
+    fn switch(&self, a: usize, k: usize) -> Option<&SwitchEdge> {
+        self.switches?.edge(a, k)
+    }
+
+    /// The model's claim on (a, k) as its score over its threshold, where it decides:
+    /// on a feature the model has learned, by the calibrated parts for a continuous
+    /// action, by the in-support evidence for a discrete one.
+    fn deciding_score(&self, a: usize, k: usize, kappa: f64) -> Option<f64> {
+        if !self.learned(k) {
+            return None;
+        }
+        if self.discrete[a] {
+            self.switch(a, k)
+                .filter(|e| e.claimed())
+                .map(|e| e.score / e.threshold)
+        } else {
+            self.claim(a, k).map(|p| p.score[a][k] / kappa)
+        }
     }
 
     /// The strongest calibrated part claiming (a, k), by score.
@@ -100,18 +137,12 @@ pub fn default_claims(
         let mut row = Vec::with_capacity(ns);
         for (k, data_decision) in data_row.into_iter().enumerate() {
             let data_score = data.pairs[a][k].z / z_crit;
-            let model_score = model
-                .claim(a, k)
-                .filter(|_| model.learned(k) && !model.discrete[a])
-                .map(|p| p.score[a][k] / kappa);
+            let model_score = model.deciding_score(a, k, kappa);
             let (decision, score) = combine(data_decision, data_score, model, model_score, (a, k));
             claims.score[a][k] = score;
             claims.drives[a][k] = decision.verdict == Verdict::Drives;
-            interval[a][k] = match (decision.source.as_str(), model.claim(a, k)) {
-                ("model", Some(part)) => part
-                    .interval
-                    .as_ref()
-                    .map_or([score; 2], |i| i[a][k].map(|v| v / kappa)),
+            interval[a][k] = match decision.source.as_str() {
+                "model" => model.deciding_interval(a, k, kappa).unwrap_or([score; 2]),
                 _ if decision.verdict == Verdict::DoesNot => [score; 2],
                 _ => [score - 1.96 / z_crit, score + 1.96 / z_crit],
             };
@@ -122,7 +153,7 @@ pub fn default_claims(
     claims.decisions = Some(decisions);
     claims.interval = Some(interval);
     claims.rule = format!(
-        "drives where the data test does, or, where it is undecided, the forward model's CAI influence or SHAP above kappa x its error ({}) does on a feature the model has learned (error < {MAX_ERROR_RATIO} x that of predicting the mean change); does not where the data shows none; else undecided. {}",
+        "drives where the data test does, or, where it is undecided, the forward model's CAI influence or SHAP above kappa x its error ({}) does on a feature the model has learned (error < {MAX_ERROR_RATIO} x that of predicting the mean change); for a discrete action, CAI at the rows where the data switched it, above kappa x max(1, its largest effect on the features the data rules out); does not where the data shows none; else undecided. {}",
         model
             .parts
             .iter()
@@ -158,9 +189,18 @@ fn combine(
         (Verdict::Drives, None) => (data, data_score),
         (Verdict::DoesNot, _) => (data, -1.0),
         (Verdict::Undecided, Some(m)) => {
-            let part = model.claim(a, k).map_or("", |p| p.method.as_str());
+            let evidence = match model.switch(a, k).filter(|_| model.discrete[a]) {
+                Some(e) => format!(
+                    "cai where the data switched this command ({}, {} rows probed): effect {:.2} x the model's error, 95 % lower bound {:.2} above {:.2} (kappa x max(1, its largest effect on the features the data rules out))",
+                    e.stratum, e.observations, e.score, e.interval[0], e.threshold
+                ),
+                None => format!(
+                    "{}: effect {m:.1} x the model's threshold",
+                    model.claim(a, k).map_or("", |p| p.method.as_str())
+                ),
+            };
             let reason = format!(
-                "{part}: effect {m:.1} x the model's threshold (error ratio {:.2} on this feature); the data alone: {}",
+                "{evidence} (error ratio {:.2} on this feature); the data alone: {}",
                 model.error_ratio(k),
                 data.reason
             );
@@ -187,14 +227,8 @@ fn combine(
 /// Why the model did not decide an undecided edge, and what would let it.
 fn undecided_by_model(model: &ModelEvidence, a: usize, k: usize) -> (String, &'static str) {
     let ratio = model.error_ratio(k);
-    if let Some(part) = model.claim(a, k).filter(|_| model.discrete[a]) {
-        return (
-            format!(
-                "{} claims it ({:.2} x its error), but this command is discrete and rarely switched: the model's evidence extrapolates and does not decide alone",
-                part.method, part.score[a][k]
-            ),
-            "more rows with this command switching (the data test then decides)",
-        );
+    if model.discrete[a] && ratio < MAX_ERROR_RATIO {
+        return undecided_discrete(model, a, k);
     }
     if ratio >= MAX_ERROR_RATIO {
         (
@@ -211,6 +245,28 @@ fn undecided_by_model(model: &ModelEvidence, a: usize, k: usize) -> (String, &'s
             ),
             "a forward model with a smaller error on this feature",
         )
+    }
+}
+
+/// Why the in-support evidence did not decide an edge of a discrete action.
+fn undecided_discrete(model: &ModelEvidence, a: usize, k: usize) -> (String, &'static str) {
+    let to_decide = "more rows with this command switching, or a forward model with a smaller error on this feature";
+    match (model.switch(a, k), model.switches) {
+        (Some(e), _) => (
+            format!(
+                "cai where the data switched this command ({}, {} rows probed): 95 % lower bound {:.2} x the model's error, not above {:.2} (kappa x max(1, its largest effect on the features the data rules out))",
+                e.stratum, e.observations, e.interval[0], e.threshold
+            ),
+            to_decide,
+        ),
+        (None, Some(switches)) if !switches.missing[a].is_empty() => (
+            format!("the model's evidence on this discrete command is not judged: {}", switches.missing[a]),
+            to_decide,
+        ),
+        _ => (
+            "this command is discrete and rarely switched: the model's evidence at random states extrapolates and does not decide".into(),
+            to_decide,
+        ),
     }
 }
 

@@ -12,7 +12,8 @@ use causal_arm_scoring::EdgeClaims;
 use crate::decide::{ModelEvidence, default_claims, discrete_actions};
 use crate::influence::{
     Effects, ErrorFloors, InfluenceSettings, Rule, UnionPart, bootstrap_interval, cai_effects,
-    claims_by_context, error_pool, mean_change_error, threshold_claims, union_claims,
+    claims_by_context, error_pool, mean_change_error, switch_evidence, threshold_claims,
+    union_claims,
 };
 use crate::{ExplainError, Explainer, Explanation, Result};
 
@@ -55,11 +56,13 @@ pub fn shap_and_cai_claims(
     let cai_effects = cai_effects(explainer, data, settings)?;
     let cai = claims_by_context(explainer, data, &cai_effects, settings, rule);
     let data_test = data_test(data, 1)?;
+    let switches = switch_evidence(explainer, data, settings, &data_test)?;
     let evidence = ModelEvidence {
         parts: vec![&cai[0], &shap_err[0]],
         error: floors.per_context[0].clone(),
         mean_change_error: mean_change_error(data, &error_pool(data, settings, 1)),
         discrete: discrete_actions(data),
+        switches: Some(&switches),
     };
     let default = default_claims(
         &default_method(explanation.settings.method),

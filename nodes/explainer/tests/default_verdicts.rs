@@ -215,3 +215,42 @@ fn a_placebo_action_column_is_never_claimed() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_discrete_placebo_command_is_never_claimed() {
+    let dir = temp("discrete-placebo");
+    let mut data = exp1_bag(&dir);
+    // a6 replaced by a command like the magnet's: −1 or +1 in 3 % of the rows each, else 0,
+    // drawn independently of everything (θ6 moved by the original a6). The model is
+    // probed where it switched, against the joints the data rules out for it.
+    let (na, rows) = (data.action_width(), data.rows());
+    let mut rng = StdRng::seed_from_u64(5);
+    for r in 0..rows {
+        let u: f64 = rand::Rng::random(&mut rng);
+        data.actions[r * na + 6] = if u < 0.03 {
+            -1.0
+        } else if u < 0.06 {
+            1.0
+        } else {
+            0.0
+        };
+    }
+    train(&data, &dir, 15, 1e-3);
+    let claims = default_claims(&data, &dir);
+    let default = &claims[0];
+    let decisions = default.decisions.as_ref().unwrap();
+    let mut judged = 0;
+    for (k, d) in decisions[6].iter().enumerate() {
+        let state = &default.state_names[k];
+        assert_ne!(d.verdict, Verdict::Drives, "placebo a6 -> {state}: {d:?}");
+        if d.reason.contains("where the data switched this command") {
+            judged += 1;
+        }
+    }
+    assert!(
+        judged > 0,
+        "the switch evidence was never judged: {:?}",
+        decisions[6]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

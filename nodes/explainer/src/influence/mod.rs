@@ -20,9 +20,11 @@ use crate::{ExplainError, Explainer, Result, forward_inputs};
 
 mod rules;
 mod significance;
+mod switches;
 
 pub use rules::*;
 pub use significance::*;
+pub use switches::*;
 
 /// How influence is measured and judged.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
@@ -262,7 +264,16 @@ pub fn cai_effects(
     data: &Dataset,
     settings: &InfluenceSettings,
 ) -> Result<Effects> {
-    let mut probe = Probe::draw(data, settings)?;
+    cai_effects_at(explainer, data, settings, Probe::draw(data, settings)?)
+}
+
+/// CAI influence at the observations of `probe` (see [`cai_effects`]).
+fn cai_effects_at(
+    explainer: &Explainer,
+    data: &Dataset,
+    settings: &InfluenceSettings,
+    mut probe: Probe,
+) -> Result<Effects> {
     let k = settings.resamples;
     let batch = probe.batch(data, &ActionDraws::new(data), k, |_, i| i);
     let Probe {

@@ -24,7 +24,7 @@ use serde::Serialize;
 use crate::decide::{ModelEvidence, default_claims, discrete_actions, model_only_claims};
 use crate::influence::{
     ActionDraws, Effects, ErrorFloors, InfluenceSettings, Probe, Rule, check, claims_by_context,
-    error_floor, error_pool, mean_change_error,
+    error_floor, error_pool, mean_change_error, switch_evidence,
 };
 use crate::{ExplainError, Explainer, Result, forward_inputs};
 
@@ -321,11 +321,13 @@ pub fn multistep_cai(
         }
         let data_test = crate::verdicts::data_test(data, h)?;
         let default = if h == 1 {
+            let switches = switch_evidence(explainer, data, settings, &data_test)?;
             let evidence = ModelEvidence {
                 parts: vec![&claims[0]],
                 error: floors.per_context[0].clone(),
                 mean_change_error: mean_change_error(data, &pool),
                 discrete: discrete_actions(data),
+                switches: Some(&switches),
             };
             default_claims(DEFAULT_METHOD, &data_test, &evidence, settings.kappa)
         } else {
@@ -485,9 +487,11 @@ mod tests {
 
     /// Exp-2 rows in two episodes of 30 steps, the second starting far from where the first
     /// ends and missing its step 12 (a dropped message: the state jumps over the hole).
-    fn episodes() -> Dataset {
+    /// `count` episodes of 30 steps, step 12 of episode 1 missing (a hole). The data test's
+    /// design needs 4 of them at h = 4.
+    fn episodes(count: u32) -> Dataset {
         let mut data = Dataset::empty(Experiment::Exp2, Default::default());
-        for episode in 0..2u32 {
+        for episode in 0..count {
             let mut s = vec![0.0f32; 23];
             s[O_Z] = 0.775;
             s[THETA0] = if episode == 0 { 0.1 } else { 1.5 };
@@ -587,7 +591,7 @@ mod tests {
 
     #[test]
     fn chains_stay_inside_episodes_and_skip_holes() {
-        let data = episodes();
+        let data = episodes(2);
         // Episode 0: rows 0..30; episode 1: steps 0..=11 at rows 30..42, 13..=29 at 42..59.
         let reach = data.chain_reach();
         assert_eq!(reach[0], 30);
@@ -620,7 +624,7 @@ mod tests {
 
     #[test]
     fn an_action_reaches_a_feature_only_through_the_chain_and_never_where_no_path_exists() {
-        let data = episodes();
+        let data = episodes(4);
         let explainer = toy_model(&data);
         let result = multistep_cai(&explainer, &data, &settings(), 4).unwrap();
         assert_eq!(
@@ -658,7 +662,7 @@ mod tests {
 
     #[test]
     fn horizons_outside_one_to_ten_and_short_data_are_refused() {
-        let data = episodes();
+        let data = episodes(2);
         let explainer = toy_model(&data);
         for bad in [0, 11] {
             let err = chained_cai_effects(&explainer, &data, &settings(), bad).unwrap_err();

@@ -142,7 +142,7 @@ fn train_first(
         "" => Cache::new(Cache::default_dir()),
         dir => Cache::new(PathBuf::from(dir)),
     };
-    let action = ActionSource::Realized;
+    let action = ActionSource::of_bags(&bags)?;
     let (data, _) = load_bags(&bags, None, action, Some(&cache))?;
     tracing::info!(
         "training on {} {} transitions from {}",

@@ -200,6 +200,8 @@ def main():
     ap.add_argument("--record", default=str(ROOT / "docs" / "runs" / "causal_budget" / "record.jsonl"))
     ap.add_argument("--table", action="store_true", help="print the recorded table and exit")
     ap.add_argument("--markdown", action="store_true", help="with --table: as the RESULTS table")
+    ap.add_argument("--history", action="store_true",
+                    help="with --table: every recorded run, not only each cell's latest")
     ap.add_argument("--reuse-models", action="store_true",
                     help="score cells already trained and explained (in --work) without redoing them")
     ap.add_argument("--reexplain", action="store_true",
@@ -209,6 +211,12 @@ def main():
     record = pathlib.Path(args.record)
     if args.table:
         rows = [json.loads(l) for l in record.read_text().splitlines() if l.strip()]
+        if not args.history:
+            # The latest run of each cell, in the order the cells were first recorded.
+            latest = {}
+            for r in rows:
+                latest[(r["exp"], r["steps"], r["budget"], r["seed"])] = r
+            rows = list(latest.values())
         (print_markdown if args.markdown else print_table)(rows)
         return
     cells = []

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The project's one test command (see README): builds everything, prepares the Python
-# venv of independent oracles (cached under target/pyvenv), then runs the Rust tests and
+# The project's one test command (see README): installs the system packages it lacks
+# (tests/system_packages.sh), builds everything, prepares the Python venv of independent
+# oracles (cached under target/pyvenv), then runs the Rust tests and
 # the Python interop tests. Everything that may start a DDS participant runs inside a
 # private loopback-only network namespace (tests/netns-run), so no traffic leaves the host.
 set -euo pipefail
@@ -11,6 +12,9 @@ REQ=$ROOT/tests/python/requirements.txt
 PYTHON=${PYTHON:-python3}
 
 step() { printf '\n==> %s\n' "$*"; }
+
+step "system packages"
+bash "$ROOT/tests/system_packages.sh"
 
 step "Python venv with pinned oracles ($VENV)"
 stamp=$VENV/.requirements.sha256

@@ -140,9 +140,12 @@ impl ParamSpec {
         self
     }
 
-    /// What `ros2 param describe` shows: the description, the range as rcl_interfaces'
-    /// integer or floating-point range (bounds inclusive, any step), and the choices as
-    /// the additional constraints, as an rclcpp node declaring them would.
+    /// What `ros2 param describe` shows and the parameter services enforce: the
+    /// description, the range as rcl_interfaces' integer or floating-point range (bounds
+    /// inclusive, any step), the choices as the additional constraints, as an rclcpp node
+    /// declaring them would; and read-only, because our nodes read their parameters once at
+    /// start (a set that changed nothing would be a lie), all but `use_sim_time`, which
+    /// the node follows.
     pub fn descriptor(&self) -> ros2_client::parameters::ParameterDescriptor {
         use ros2_client::parameters::{NumericRange, ParameterDescriptor};
         let range = match (self.range, &self.default) {
@@ -168,6 +171,7 @@ impl ParamSpec {
             description: self.description.to_owned(),
             additional_constraints,
             range,
+            read_only: self.name != use_sim_time_spec().name,
             ..ParameterDescriptor::from_value(self.name, &self.default.to_ros())
         }
     }
@@ -634,6 +638,9 @@ mod tests {
         let d = exp.descriptor();
         assert_eq!(d.additional_constraints, "one of: exp1, exp2");
         assert!(matches!(d.range, NumericRange::NotSpecified));
+        // Read once at start: read-only, but for use_sim_time, which the node follows.
+        assert!(steps.descriptor().read_only && d.read_only);
+        assert!(!use_sim_time_spec().descriptor().read_only);
     }
 
     #[test]

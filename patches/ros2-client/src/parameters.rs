@@ -551,6 +551,10 @@ impl ParameterStore {
         value.to_parameter_type()
       ));
     }
+    if let Some(descriptor) = self.descriptors.get(name) {
+      let initialized = existing.is_some_and(|v| !matches!(v, ParameterValue::NotSet));
+      check_descriptor(descriptor, value, initialized)?;
+    }
     self.check_value(name, value)
   }
 
@@ -609,6 +613,63 @@ impl ParameterStore {
     }
     Ok(())
   }
+}
+
+/// What rclcpp enforces of a parameter's descriptor when the parameter is set, with its
+/// messages: a read-only parameter keeps its initial value, and a number stays within its
+/// integer or floating-point range (bounds inclusive; a nonzero step counted from
+/// `from_value`, the bounds always allowed; floating-point comparisons within 1e-6).
+fn check_descriptor(
+  descriptor: &ParameterDescriptor,
+  value: &ParameterValue,
+  initialized: bool,
+) -> SetParametersResult {
+  let name = &descriptor.name;
+  if descriptor.read_only && initialized {
+    return Err(format!(
+      "parameter '{name}' cannot be set because it is read-only"
+    ));
+  }
+  match (&descriptor.range, value) {
+    (
+      NumericRange::IntegerRange {
+        from_value,
+        to_value,
+        step,
+      },
+      ParameterValue::Integer(v),
+    ) => {
+      let on_step = *step == 0 || *v == *to_value || (v - from_value) % step == 0;
+      if v < from_value || v > to_value || !on_step {
+        return Err(format!(
+          "Parameter {{{name}}} doesn't comply with integer range."
+        ));
+      }
+    }
+    (
+      NumericRange::FloatingPointRange {
+        from_value,
+        to_value,
+        step,
+      },
+      ParameterValue::Double(v),
+    ) => {
+      const TOLERANCE: f64 = 1e-6;
+      let near = |a: f64, b: f64| (a - b).abs() <= TOLERANCE;
+      let on_step = *step == 0.0 || {
+        let steps = (v - from_value) / step;
+        near(steps, steps.round())
+      };
+      let at_bound = near(*v, *from_value) || near(*v, *to_value);
+      if !at_bound && (v.is_nan() || v < from_value || v > to_value || !on_step) {
+        return Err(format!(
+          "Parameter {{{name}}} doesn't comply with floating point range."
+        ));
+      }
+    }
+    _ => {}
+  }
+  Ok(())
 }
 
 /// Raw, ROS2-compatible Parameters for sending over the wire.
@@ -755,6 +816,57 @@ mod tests {
     assert!(matches!(p.range, NumericRange::IntegerRange { from_value: 0, to_value: 10, .. }));
     assert!(matches!(sim_time.param_type, super::ParameterType::Bool));
     assert!(matches!(q.param_type, super::ParameterType::NotSet));
+  }
+
+  #[test]
+  fn a_descriptor_is_enforced_as_rclcpp_does() {
+    let ranged = ParameterDescriptor {
+      name: "p".to_string(),
+      range: NumericRange::IntegerRange {
+        from_value: 2,
+        to_value: 10,
+        step: 2,
+      },
+      ..ParameterDescriptor::from_value("p", &ParameterValue::Integer(1))
+    };
+    let s = store(false).with_descriptors([ranged]);
+    for bad in [-5, 0, 11, 5] {
+      let err = s.set("p", ParameterValue::Integer(bad)).unwrap_err();
+      assert_eq!(err, "Parameter {p} doesn't comply with integer range.");
+    }
+    assert_eq!(s.get("p"), Some(ParameterValue::Integer(1)));
+    for good in [2, 4, 10] {
+      assert!(s.set("p", ParameterValue::Integer(good)).is_ok(), "{good}");
+    }
+
+    let s = ParameterStore::new(vec![param("k", ParameterValue::Double(1.0))], false, None, None)
+      .unwrap()
+      .with_descriptors([ParameterDescriptor {
+        name: "k".to_string(),
+        range: NumericRange::FloatingPointRange {
+          from_value: 0.0,
+          to_value: 1.0,
+          step: 0.0,
+        },
+        ..ParameterDescriptor::from_value("k", &ParameterValue::Double(1.0))
+      }]);
+    for bad in [-0.5, 1.5, f64::NAN] {
+      let err = s.set("k", ParameterValue::Double(bad)).unwrap_err();
+      assert_eq!(err, "Parameter {k} doesn't comply with floating point range.");
+    }
+    assert!(s.set("k", ParameterValue::Double(1.0 + 1e-9)).is_ok());
+
+    let read_only = ParameterDescriptor {
+      read_only: true,
+      ..ParameterDescriptor::from_value("p", &ParameterValue::Integer(1))
+    };
+    let s = store(false).with_descriptors([read_only]);
+    for value in [ParameterValue::Integer(3), ParameterValue::NotSet] {
+      let err = s.set("p", value).unwrap_err();
+      assert_eq!(err, "parameter 'p' cannot be set because it is read-only");
+    }
+    assert_eq!(s.get("p"), Some(ParameterValue::Integer(1)));
+    assert!(s.set("use_sim_time", ParameterValue::Boolean(true)).is_ok());
   }
 
   #[test]

@@ -244,6 +244,46 @@ class DescribeParametersReply(IdlStruct, typename="rcl_interfaces::srv::dds_::De
     descriptors: t.sequence[ParameterDescriptor] = field(default_factory=list)
 
 
+@dataclass
+class ParameterValue(IdlStruct, typename="rcl_interfaces::msg::dds_::ParameterValue_"):
+    type: t.uint8 = 0
+    bool_value: bool = False
+    integer_value: t.int64 = 0
+    double_value: t.float64 = 0.0
+    string_value: str = ""
+    byte_array_value: t.sequence[t.uint8] = field(default_factory=list)
+    bool_array_value: t.sequence[bool] = field(default_factory=list)
+    integer_array_value: t.sequence[t.int64] = field(default_factory=list)
+    double_array_value: t.sequence[t.float64] = field(default_factory=list)
+    string_array_value: t.sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class Parameter(IdlStruct, typename="rcl_interfaces::msg::dds_::Parameter_"):
+    name: str = ""
+    value: ParameterValue = field(default_factory=ParameterValue)
+
+
+@dataclass
+class SetParametersResult(IdlStruct, typename="rcl_interfaces::msg::dds_::SetParametersResult_"):
+    successful: bool = False
+    reason: str = ""
+
+
+@dataclass
+class SetParametersRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::SetParameters_Request_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    parameters: t.sequence[Parameter] = field(default_factory=list)
+
+
+@dataclass
+class SetParametersReply(IdlStruct, typename="rcl_interfaces::srv::dds_::SetParameters_Response_"):
+    client_guid: t.uint64 = 0
+    sequence_number: t.int64 = 0
+    results: t.sequence[SetParametersResult] = field(default_factory=list)
+
+
 class ServiceClient:
     """A ROS 2 service client as rmw_cyclonedds makes one, on a CycloneDDS participant."""
 

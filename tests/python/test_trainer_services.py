@@ -146,6 +146,31 @@ def test_ros2_param_describe_shows_descriptions_ranges_and_choices(trainer_node)
     assert nope.type == 0
 
 
+def test_ros2_param_set_is_refused_for_what_the_node_read_at_start(trainer_node):
+    """rcl_interfaces/SetParameters, as `ros2 param set /causal_arm_trainer folds -5` asks it.
+    It answered successful = true before, although the range is 2..1,000,000 and the node
+    had read the value at start (patches/ros2-client-parameter-descriptor-rules.diff)."""
+    from cyclonedds.domain import DomainParticipant
+
+    participant = DomainParticipant(41)
+    setter = idl.ServiceClient(participant, "/causal_arm_trainer/set_parameters",
+                               idl.SetParametersRequest, idl.SetParametersReply)
+    assert setter.wait_for_server(), "no set_parameters server"
+    reply = setter.call(idl.SetParametersRequest(parameters=[
+        idl.Parameter(name="folds", value=idl.ParameterValue(type=2, integer_value=-5)),
+        idl.Parameter(name="profile", value=idl.ParameterValue(type=4, string_value="paper")),
+    ]))
+    assert [(r.successful, r.reason) for r in reply.results] == [
+        (False, "parameter 'folds' cannot be set because it is read-only"),
+        (False, "parameter 'profile' cannot be set because it is read-only"),
+    ]
+    describer = idl.ServiceClient(participant, "/causal_arm_trainer/describe_parameters",
+                                  idl.DescribeParametersRequest, idl.DescribeParametersReply)
+    assert describer.wait_for_server(), "no describe_parameters server"
+    folds, sim_time = describer.call(idl.DescribeParametersRequest(names=["folds", "use_sim_time"])).descriptors
+    assert folds.read_only and not sim_time.read_only
+
+
 def model_info_request_writer(participant, qos):
     """A CycloneDDS writer of `/trainer/model_info` requests (Cyclone mapping) once the
     trainer's request reader has matched it, and the client GUID its requests carry."""

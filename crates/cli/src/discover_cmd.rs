@@ -55,10 +55,7 @@ pub fn run(args: &DiscoverArgs) -> anyhow::Result<()> {
         .map(causal_arm_truth::load)
         .transpose()?;
     let cache = Cache::new(args.cache.clone().unwrap_or_else(Cache::default_dir));
-    let action = match args.action {
-        Some(action) => action,
-        None => ActionSource::of_bags(&args.bags)?,
-    };
+    let action = ActionSource::given_or_of_bags(args.action, &args.bags)?;
     let (data, _) = load_bags(&args.bags, None, action, Some(&cache))?;
     if let Some(truth) = &truth {
         let names = causal_arm_dataset::action_names(data.experiment);

@@ -213,10 +213,7 @@ struct CheckedArgs {
 /// experiment) into the trainer's options.
 fn checked_options(args: &TrainArgs) -> anyhow::Result<CheckedArgs> {
     let (profile, fm_target) = (args.profile, args.fm_target);
-    let action = match args.action {
-        Some(action) => action,
-        None => ActionSource::of_bags(&args.bags)?,
-    };
+    let action = ActionSource::given_or_of_bags(args.action, &args.bags)?;
     let lr_schedule: LrSchedule = args.lr_schedule.parse().map_err(anyhow::Error::msg)?;
     let expected = args.experiment;
     let requested = args.model.one();

@@ -71,6 +71,14 @@ impl ActionSource {
         }
         Ok(found.map_or(Self::Realized, |(source, _)| source))
     }
+
+    /// The action the user gave (`--action`), else the one [`Self::of_bags`] chooses.
+    pub fn given_or_of_bags(given: Option<Self>, bags: &[PathBuf]) -> Result<Self, DatasetError> {
+        match given {
+            Some(action) => Ok(action),
+            None => Self::of_bags(bags),
+        }
+    }
 }
 
 /// Transitions of one experiment, row-major f32 matrices with one row per transition.

@@ -1,7 +1,7 @@
 #!/bin/bash
 # The dynamic arm's verdicts against truths at four effect sizes (run from the repo root).
 set -e
-B=target/release/causal-arm; D=target/dyn/exp2_50k; OUT=docs/runs/dynamic
+B=target/release/causal-arm; D=target/dyn/exp2_50k
 for action in realized commanded; do
   $B discover --bag $D/bag --action $action --out $D/discover_$action > /dev/null
   for K in 0 0.01 0.03 0.1; do
@@ -10,10 +10,8 @@ for action in realized commanded; do
   done
 done
 for budget in quick e30; do
-  if [ ! -f $D/model-$budget/fm.safetensors ] || [ $budget = e30 ]; then
-    extra=""; [ $budget = e30 ] && extra="--epochs 30 --lr-schedule cosine"
-    [ -f $D/model-$budget/fm.safetensors ] || $B train --bag $D/bag --model fm --profile quick --max-folds 1 --out $D/model-$budget $extra > /dev/null
-  fi
+  extra=""; [ $budget = e30 ] && extra="--epochs 30 --lr-schedule cosine"
+  [ -f $D/model-$budget/fm.safetensors ] || $B train --bag $D/bag --model fm --profile quick --max-folds 1 --out $D/model-$budget $extra > /dev/null
   $B explain --model $D/model-$budget --bag $D/bag --method kernel --no-pair-plots > /dev/null
   for K in 0 0.01 0.03 0.1; do
     echo "== default (kernel+cai+data), $budget FM on commanded actions, truth K = $K"

@@ -190,10 +190,7 @@ fn combine(
         (Verdict::DoesNot, _) => (data, -1.0),
         (Verdict::Undecided, Some(m)) => {
             let evidence = match model.switch(a, k).filter(|_| model.discrete[a]) {
-                Some(e) => format!(
-                    "cai where the data switched this command ({}, {} rows probed): effect {:.2} x the model's error, 95 % lower bound {:.2} above {:.2} (kappa x max(1, its largest effect on the features the data rules out))",
-                    e.stratum, e.observations, e.score, e.interval[0], e.threshold
-                ),
+                Some(e) => e.describe(),
                 None => format!(
                     "{}: effect {m:.1} x the model's threshold",
                     model.claim(a, k).map_or("", |p| p.method.as_str())
@@ -252,13 +249,7 @@ fn undecided_by_model(model: &ModelEvidence, a: usize, k: usize) -> (String, &'s
 fn undecided_discrete(model: &ModelEvidence, a: usize, k: usize) -> (String, &'static str) {
     let to_decide = "more rows with this command switching, or a forward model with a smaller error on this feature";
     match (model.switch(a, k), model.switches) {
-        (Some(e), _) => (
-            format!(
-                "cai where the data switched this command ({}, {} rows probed): 95 % lower bound {:.2} x the model's error, not above {:.2} (kappa x max(1, its largest effect on the features the data rules out))",
-                e.stratum, e.observations, e.interval[0], e.threshold
-            ),
-            to_decide,
-        ),
+        (Some(e), _) => (e.describe(), to_decide),
         (None, Some(switches)) if !switches.missing[a].is_empty() => (
             format!("the model's evidence on this discrete command is not judged: {}", switches.missing[a]),
             to_decide,

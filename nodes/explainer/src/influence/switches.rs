@@ -53,6 +53,19 @@ impl SwitchEdge {
         self.interval[0] > self.threshold
     }
 
+    /// The evidence in words, for a verdict's reason.
+    pub fn describe(&self) -> String {
+        format!(
+            "cai where the data switched this command ({}, {} rows probed): effect {:.2} x the model's error, 95 % lower bound {:.2} {} {:.2} (kappa x max(1, its largest effect on the features the data rules out))",
+            self.stratum,
+            self.observations,
+            self.score,
+            self.interval[0],
+            if self.claimed() { "above" } else { "not above" },
+            self.threshold
+        )
+    }
+
     /// Lower bound over threshold: > 1 exactly where claimed.
     fn margin(&self) -> f64 {
         if self.threshold > 0.0 {
@@ -131,12 +144,15 @@ pub fn switch_evidence(
             judged += 1;
             let error = feature_error(explainer.model(), data, &stratum_rows)?;
             let stratum = describe_stratum(data, &draws.discrete_states, key);
-            let edges = judge_stratum(&effects, members, &error, settings, j, &controls);
+            let edges = judge_stratum(
+                &effects,
+                members,
+                &error,
+                settings,
+                (j, &controls),
+                &stratum,
+            );
             for (k, edge) in edges.into_iter().enumerate() {
-                let edge = SwitchEdge {
-                    stratum: stratum.clone(),
-                    ..edge
-                };
                 let slot = &mut evidence.edges[j][k];
                 if slot.as_ref().is_none_or(|old| edge.margin() > old.margin()) {
                     *slot = Some(edge);
@@ -208,15 +224,16 @@ fn describe_stratum(data: &Dataset, columns: &[usize], key: &[u32]) -> String {
     }
 }
 
-/// Action `j`'s edges in one stratum: the calibrated score and interval of every feature,
-/// against κ × max(1, the highest score among the negative controls `controls`).
+/// Action `j`'s edges in the stratum named `stratum`: the calibrated score and interval of
+/// every feature, against κ × max(1, the highest score among the negative controls
+/// `controls`).
 fn judge_stratum(
     effects: &Effects,
     members: &[usize],
     error: &[f64],
     settings: &InfluenceSettings,
-    j: usize,
-    controls: &[usize],
+    (j, controls): (usize, &[usize]),
+    stratum: &str,
 ) -> Vec<SwitchEdge> {
     let claims = calibrated_claims(effects, members, error, settings, "", &[], &[]);
     let interval = claims.interval.unwrap_or_default();
@@ -230,7 +247,7 @@ fn judge_stratum(
             score: claims.score[j][k],
             interval: interval[j][k],
             threshold,
-            stratum: String::new(),
+            stratum: stratum.to_owned(),
             observations: members.len(),
         })
         .collect()

@@ -167,6 +167,16 @@ def test_control_the_same_eavesdropper_and_capture_see_an_unsecured_pair(causal_
     assert capture.contains(b"iiwa_joint_1") > 0 and capture.contains(b"joint_states") > 0
 
 
+def _thread_stacks(pid):
+    """Every thread's stack of a stalled process, so a hang seen once in CI names its locks."""
+    try:
+        r = subprocess.run(["gdb", "-p", str(pid), "-batch", "-ex", "thread apply all bt 40"],
+                           capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        return f"(no stacks: {e})"
+    return "\n".join(line for line in r.stdout.splitlines() if line.startswith(("Thread", "#")))
+
+
 def _launch_or_explain_the_stall(causal_arm_bin, args, env, timeout):
     """Runs `causal-arm launch ARGS`; if it has not ended after `timeout` s, interrupts it as
     a user would (so it stops its nodes and says how far it got) and fails with its output."""
@@ -175,6 +185,7 @@ def _launch_or_explain_the_stall(causal_arm_bin, args, env, timeout):
     try:
         out, err = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
+        stacks = _thread_stacks(proc.pid)
         proc.send_signal(signal.SIGINT)
         try:
             out, err = proc.communicate(timeout=60)
@@ -183,7 +194,8 @@ def _launch_or_explain_the_stall(causal_arm_bin, args, env, timeout):
             out, err = proc.communicate()
         useful = [line for line in err.splitlines() if "Submessage decoding failed" not in line]
         pytest.fail(f"launch did not end within {timeout} s; after SIGINT: stdout {out!r}; "
-                    "stderr (decode errors left out):\n" + "\n".join(useful[-60:]))
+                    "stderr (decode errors left out):\n" + "\n".join(useful[-60:])
+                    + "\nthreads at the stall:\n" + stacks)
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 

@@ -127,3 +127,60 @@ fn enforce_refuses_a_node_without_an_enclave() {
     };
     assert!(err.contains("ROS_SECURITY_STRATEGY=Enforce"), "{err}");
 }
+
+/// rustdds took the security plugins and then the participant when it created a reader or
+/// writer, but the participant and then the plugins when it created a topic: a node whose
+/// spinner subscribed while its owner made a topic hung at start (one secured launch in
+/// three; patches/rustdds-security-lock-order.diff). Both orders race here many times.
+#[test]
+fn topics_and_readers_made_at_once_on_a_secured_participant_never_deadlock() {
+    use rustdds::{QosPolicyBuilder, TopicKind, no_key::SimpleDataReader};
+    type Reader = SimpleDataReader<RosString, rustdds::CDRDeserializerAdapter<RosString>>;
+    const ROUNDS: usize = 1000;
+
+    let dir = tempfile::tempdir().unwrap();
+    let keystore = Keystore::create(dir.path(), DOMAIN).unwrap();
+    keystore.create_enclave("/racer", DOMAIN).unwrap();
+    let env = env(Some(&keystore));
+    let security = env.security.resolve(Some("/racer")).unwrap();
+    let participant = env.domain_participant(&security).unwrap();
+    let qos = QosPolicyBuilder::new().build();
+    let type_name = "std_msgs::msg::dds_::String_".to_owned();
+    let topic = participant
+        .create_topic("rt/race".into(), type_name.clone(), &qos, TopicKind::NoKey)
+        .unwrap();
+    let subscriber = participant.create_subscriber(&qos).unwrap();
+    let stop = std::sync::Arc::new(AtomicBool::new(false));
+    let (topics_participant, topics_stop) = (participant.clone(), stop.clone());
+    let topics = std::thread::spawn(move || {
+        while !topics_stop.load(std::sync::atomic::Ordering::Relaxed) {
+            topics_participant
+                .create_topic("rt/race".into(), type_name.clone(), &qos, TopicKind::NoKey)
+                .map_err(|e| format!("{e:?}"))?;
+        }
+        Ok::<(), String>(())
+    });
+    let (readers_tx, readers_rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let made = (0..ROUNDS).try_for_each(|_| {
+            let reader: Reader = subscriber
+                .create_simple_datareader_no_key(&topic, None)
+                .map_err(|e| format!("{e:?}"))?;
+            drop(reader);
+            // Paced: the event loop admits at most 100 queued readers.
+            std::thread::sleep(Duration::from_millis(1));
+            Ok::<(), String>(())
+        });
+        readers_tx.send(made).unwrap();
+    });
+    match readers_rx.recv_timeout(Duration::from_secs(120)) {
+        Ok(made) => made.expect("a reader"),
+        Err(e) => {
+            // The threads hold the participant: dropping it here would wait for them.
+            std::mem::forget(participant);
+            panic!("making topics and readers at once deadlocked ({e})");
+        }
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    topics.join().unwrap().expect("a topic");
+}

@@ -562,10 +562,13 @@ impl InnerPublisher {
     #[cfg(feature = "security")]
     if let Some(sec_handle) = self.security_plugins_handle.as_ref() {
       // Security is enabled.
-      // Check are we allowed to create the DataWriter from Access control
+      // Check are we allowed to create the DataWriter from Access control.
+      // The domain id locks the participant: take it before the plugins, as
+      // `create_topic` holds the participant while it asks for them.
+      let domain_id = dp.domain_id();
       let check_res = sec_handle.get_plugins().check_create_datawriter(
         guid.prefix,
-        dp.domain_id(),
+        domain_id,
         topic.name(),
         &writer_qos,
       );
@@ -1177,10 +1180,13 @@ impl InnerSubscriber {
     #[cfg(feature = "security")]
     if let Some(sec_handle) = self.security_plugins_handle.as_ref() {
       // Security is enabled.
-      // Check are we allowed to create the DataReader from Access control
+      // Check are we allowed to create the DataReader from Access control.
+      // The domain id locks the participant: take it before the plugins, as
+      // `create_topic` holds the participant while it asks for them.
+      let domain_id = dp.domain_id();
       let check_res = sec_handle.get_plugins().check_create_datareader(
         reader_guid.prefix,
-        dp.domain_id(),
+        domain_id,
         topic.name(),
         &qos,
       );

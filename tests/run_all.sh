@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # The project's one test command (see README): installs the system packages it lacks
 # (tests/system_packages.sh), builds everything, prepares the Python venv of independent
-# oracles (cached under target/pyvenv), then runs the Rust tests and
-# the Python interop tests. Everything that may start a DDS participant runs inside a
-# private loopback-only network namespace (tests/netns-run), so no traffic leaves the host.
+# oracles (cached under target/pyvenv) and the ROS 2 Jazzy and Kilted wheels with our
+# colcon-built interfaces (target/ros), then runs the Rust tests, the patched crates' unit
+# tests and the Python interop tests (real rclpy among them). Everything that may start a
+# DDS participant runs inside a private loopback-only network namespace (tests/netns-run),
+# so no traffic leaves the host.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -28,11 +30,19 @@ else
   echo "up to date"
 fi
 
+for distro in jazzy kilted; do
+  step "ROS 2 $distro: rclpy wheels and colcon-built interfaces (target/ros/$distro)"
+  PYTHON=$PYTHON bash "$ROOT/tests/ros2/setup.sh" "$distro"
+done
+
 step "cargo build (workspace binaries)"
 cargo build --workspace --bins --locked
 
 step "cargo test --workspace (inside a private network namespace)"
 tests/netns-run cargo test --workspace --locked
+
+step "unit tests of the patched crates (patches/)"
+bash "$ROOT/tests/patched_crates.sh"
 
 step "Python interop tests (inside a private network namespace)"
 tests/netns-run "$VENV/bin/python" -m pytest -q tests/python "$@"

@@ -124,6 +124,9 @@ impl DdsStatePublisher {
             };
         }
         each_state_topic!(confirm);
+        // Subscribers outside the graph file that were running before the run (an rclpy
+        // echo) get its first step too.
+        node.wait_for_discovery_settled(crate::SETTLE);
         Ok(true)
     }
 

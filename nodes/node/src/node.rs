@@ -55,6 +55,10 @@ fn dds_err(what: impl Into<String>) -> impl FnOnce(ros2_client::CreateError) -> 
 /// [`crate::runtime::wait_rearmed`]).
 const REARM: Duration = Duration::from_millis(250);
 
+/// How long after a participant joins the participants already present have answered
+/// its announcement: they do at once (Fast DDS, Cyclone DDS, rustdds) on loopback.
+const DISCOVERY_ANSWER: std::time::Duration = std::time::Duration::from_millis(100);
+
 /// A running node: context, ros2-client node (with its spinner serving parameters and
 /// `/clock`), validated parameters and rosout logging.
 pub struct RosNode {
@@ -65,6 +69,8 @@ pub struct RosNode {
     node: Option<Node>,
     spinner: Option<tokio::task::JoinHandle<()>>,
     _context: Context,
+    /// When the participant joined: those already present answer its announcement at once.
+    joined: std::time::Instant,
 }
 
 impl RosNode {
@@ -146,6 +152,7 @@ impl RosNode {
             node: Some(node),
             spinner: Some(spinner),
             _context: context,
+            joined: std::time::Instant::now(),
         })
     }
 
@@ -245,6 +252,26 @@ impl RosNode {
     ) -> bool {
         let left = deadline.saturating_duration_since(std::time::Instant::now());
         publisher.wait_for_confirmed_subscriptions(count, left)
+    }
+
+    /// Waits until this node has exchanged endpoints with every participant already on
+    /// the network, both ways, or `max_wait` passed: a node about to publish the first
+    /// step of a run calls it, so that a subscriber that was running before the run
+    /// (an rclpy `echo`) gets that step too. Returns whether all settled.
+    pub fn wait_for_discovery_settled(&self, max_wait: std::time::Duration) -> bool {
+        let heard_back = self.joined + DISCOVERY_ANSWER;
+        std::thread::sleep(heard_back.saturating_duration_since(std::time::Instant::now()));
+        let unsettled = self
+            ._context
+            .domain_participant()
+            .wait_for_discovery_settled(max_wait);
+        if !unsettled.is_empty() {
+            tracing::debug!(
+                "discovery with {} participant(s) not settled within {max_wait:?}: {unsettled:?}",
+                unsettled.len()
+            );
+        }
+        unsettled.is_empty()
     }
 
     /// Applies `-r from:=to` remappings to a topic or service name.

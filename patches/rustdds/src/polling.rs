@@ -144,10 +144,19 @@ pub(crate) fn wake_channel<T>(
 }
 
 /// Unbounded queue whose send wakes `waker`'s poll. Used for stop commands.
-#[derive(Clone)]
 pub(crate) struct WakeUnboundedSender<T> {
   tx: mpsc::Sender<T>,
   waker: LoopWaker,
+}
+
+// Not derived: that would require `T: Clone`, and a command may carry a reply channel.
+impl<T> Clone for WakeUnboundedSender<T> {
+  fn clone(&self) -> Self {
+    Self {
+      tx: self.tx.clone(),
+      waker: self.waker.clone(),
+    }
+  }
 }
 
 impl<T> WakeUnboundedSender<T> {

@@ -34,7 +34,7 @@ use crate::{
   },
   discovery::{
     discovery::{Discovery, DiscoveryCommand},
-    discovery_db::DiscoveryDB,
+    discovery_db::{discovery_db_read, DiscoveryDB},
     sedp_messages::{DiscoveredReaderData, DiscoveredTopicData, DiscoveredWriterData},
   },
   network::{constant::*, udp_listener::UDPListener},
@@ -44,7 +44,7 @@ use crate::{
   },
   rtps::{
     constant::*,
-    dp_event_loop::{DPEventLoop, DomainInfo, EventLoopCommand},
+    dp_event_loop::{DPEventLoop, DiscoverySyncReport, DomainInfo, EventLoopCommand},
     reader::*,
     writer::WriterIngredients,
   },
@@ -641,6 +641,74 @@ impl DomainParticipant {
 
   pub(crate) fn discovery_db(&self) -> Arc<RwLock<DiscoveryDB>> {
     self.dpi.lock().unwrap().dpi.discovery_db.clone()
+  }
+
+  /// Waits until the endpoint exchange (SEDP) with every remote participant heard
+  /// of so far is complete both ways: we hold every endpoint it announced, have
+  /// matched ours to them, and it has acknowledged every endpoint we announced.
+  /// A sample written then reaches each reader that was already on the network,
+  /// where without waiting the first ones go out before the readers are matched.
+  /// A participant starts by announcing itself, and those present answer at once
+  /// (Fast DDS, Cyclone DDS and rustdds alike); call this some 100 ms after
+  /// creating the participant so their answers are in. Returns the participants
+  /// still unsettled after `max_wait`, empty when all settled.
+  pub fn wait_for_discovery_settled(&self, max_wait: Duration) -> Vec<GuidPrefix> {
+    static FLUSHES: atomic::AtomicU64 = atomic::AtomicU64::new(0);
+    let deadline = Instant::now() + max_wait;
+    let (commands, event_loop, db) = {
+      let dp = self.dpi.lock().unwrap();
+      (
+        dp.discovery_command_sender.clone(),
+        dp.dpi.stop_poll_sender.clone(),
+        dp.dpi.discovery_db.clone(),
+      )
+    };
+    let report = |deadline: Instant| -> DiscoverySyncReport {
+      let (reply, answer) = std::sync::mpsc::channel();
+      if event_loop
+        .send(EventLoopCommand::ReportDiscoverySync(reply))
+        .is_err()
+      {
+        return DiscoverySyncReport::default();
+      }
+      answer
+        .recv_timeout(deadline.saturating_duration_since(Instant::now()))
+        .unwrap_or_default()
+    };
+    loop {
+      let known = discovery_db_read(&db).remote_participants();
+      let pending: Vec<GuidPrefix> = known
+        .difference(&report(deadline).settled)
+        .copied()
+        .collect();
+      if pending.is_empty() {
+        // Everything announced is in the SEDP readers. Have Discovery pass it on,
+        // then the event loop apply it (it answers after queued notifications).
+        let id = FLUSHES.fetch_add(1, atomic::Ordering::Relaxed) + 1;
+        let flushed = commands.try_send(DiscoveryCommand::Flush { id }).is_ok()
+          && Self::wait_until(deadline, || discovery_db_read(&db).flushed_through >= id);
+        if flushed
+          && known.is_subset(&report(deadline).settled)
+          && discovery_db_read(&db).remote_participants() == known
+        {
+          return Vec::new();
+        }
+      }
+      if Instant::now() >= deadline {
+        return if pending.is_empty() { known.into_iter().collect() } else { pending };
+      }
+      thread::sleep(Duration::from_millis(5));
+    }
+  }
+
+  fn wait_until(deadline: Instant, done: impl Fn() -> bool) -> bool {
+    while !done() {
+      if Instant::now() >= deadline {
+        return false;
+      }
+      thread::sleep(Duration::from_millis(1));
+    }
+    true
   }
 
   pub(crate) fn new_entity_id(&self, entity_kind: EntityKind) -> EntityId {

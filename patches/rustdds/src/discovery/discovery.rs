@@ -99,6 +99,11 @@ pub enum DiscoveryCommand {
     writer_guid: GUID,
     manual_assertion: bool,
   },
+  /// Take every endpoint announcement the SEDP readers hold now, pass it on to the
+  /// event loop, then record `id` as `DiscoveryDB::flushed_through`.
+  Flush {
+    id: u64,
+  },
 
   #[cfg(feature = "security")]
   StartKeyExchangeWithRemoteParticipant {
@@ -766,6 +771,16 @@ impl Discovery {
                 }
                 DiscoveryCommand::AddLocalWriter { guid } => {
                   self.add_local_writer(guid);
+                }
+                DiscoveryCommand::Flush { id } => {
+                  self.sedp_receive_subscription(None);
+                  self.sedp_receive_publication(None);
+                  #[cfg(feature = "security")]
+                  {
+                    self.secure_sedp_receive_subscription(None);
+                    self.secure_sedp_receive_publication(None);
+                  }
+                  discovery_db_write(&self.discovery_db).flushed_through = id;
                 }
                 DiscoveryCommand::AddLocalReader { guid } => {
                   self.add_local_reader(guid);

@@ -1,5 +1,5 @@
 use std::{
-  collections::BTreeMap,
+  collections::{BTreeMap, BTreeSet},
   sync::{Arc, RwLock, RwLockReadGuard, RwLockWriteGuard},
   time::Instant,
 };
@@ -51,6 +51,9 @@ pub(crate) struct DiscoveryDB {
   my_guid: GUID,
   participant_proxies: BTreeMap<GuidPrefix, SpdpDiscoveredParticipantData>,
   participant_last_life_signs: BTreeMap<GuidPrefix, Instant>,
+
+  // The last `DiscoveryCommand::Flush` Discovery has carried out.
+  pub(crate) flushed_through: u64,
 
   // Authentication statuses of participants
   #[cfg(feature = "security")]
@@ -129,6 +132,7 @@ impl DiscoveryDB {
       my_guid,
       participant_proxies: BTreeMap::new(),
       participant_last_life_signs: BTreeMap::new(),
+      flushed_through: 0,
       #[cfg(feature = "security")]
       authentication_statuses: BTreeMap::new(),
       local_topic_writers: BTreeMap::new(),
@@ -205,6 +209,16 @@ impl DiscoveryDB {
       .insert(guid.prefix, Instant::now());
 
     new_participant
+  }
+
+  /// The remote participants heard of by SPDP and not lost since.
+  pub fn remote_participants(&self) -> BTreeSet<GuidPrefix> {
+    self
+      .participant_proxies
+      .keys()
+      .copied()
+      .filter(|p| *p != self.my_guid.prefix)
+      .collect()
   }
 
   pub fn participant_is_alive(&mut self, guid_prefix: GuidPrefix) {

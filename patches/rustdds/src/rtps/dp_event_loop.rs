@@ -73,6 +73,52 @@ pub struct DomainInfo {
 pub(crate) enum EventLoopCommand {
   Stop,
   PrepareStop,
+  /// Answered after the discovery notifications queued before it are applied.
+  ReportDiscoverySync(std::sync::mpsc::Sender<DiscoverySyncReport>),
+}
+
+/// How far the endpoint exchange (SEDP) with each remote participant has come,
+/// for `DomainParticipant::wait_for_discovery_settled`. A participant is settled
+/// when our publications and subscriptions readers hold everything its writers
+/// announced and its readers have acknowledged everything ours wrote.
+#[derive(Debug, Default)]
+pub(crate) struct DiscoverySyncReport {
+  pub settled: BTreeSet<GuidPrefix>,
+}
+
+impl DiscoverySyncReport {
+  /// `roles[i]` maps each participant to whether role i (one of our four SEDP
+  /// endpoints, plain or secure) is done with it.
+  fn from_roles(roles: &[BTreeMap<GuidPrefix, bool>]) -> Self {
+    let settled = roles
+      .iter()
+      .flat_map(|r| r.keys().copied())
+      .filter(|p| roles.iter().all(|role| role.get(p) == Some(&true)))
+      .collect();
+    Self { settled }
+  }
+}
+
+#[cfg(test)]
+mod discovery_sync_tests {
+  use super::*;
+
+  #[test]
+  fn a_participant_is_settled_when_every_role_is_done_with_it() {
+    let (a, b, c) = (
+      GuidPrefix::new(&[1; 12]),
+      GuidPrefix::new(&[2; 12]),
+      GuidPrefix::new(&[3; 12]),
+    );
+    let done = |entries: &[(GuidPrefix, bool)]| entries.iter().copied().collect();
+    let report = DiscoverySyncReport::from_roles(&[
+      done(&[(a, true), (b, true), (c, true)]),
+      done(&[(a, true), (b, false), (c, true)]),
+      // c has not matched this role at all yet.
+      done(&[(a, true), (b, true)]),
+    ]);
+    assert_eq!(report.settled, BTreeSet::from([a]));
+  }
 }
 
 pub struct DPEventLoop {
@@ -392,6 +438,50 @@ impl DPEventLoop {
     } // loop
   } // fn
 
+  fn discovery_sync_report(&self) -> DiscoverySyncReport {
+    let reader_role = |plain: EntityId, secure: EntityId| {
+      let mut role = BTreeMap::new();
+      for eid in [plain, secure] {
+        if let Some(reader) = self.message_receiver.available_readers.get(&eid) {
+          for (prefix, done) in reader.caught_up_by_participant() {
+            *role.entry(prefix).or_insert(false) |= done;
+          }
+        }
+      }
+      role
+    };
+    let writer_role = |plain: EntityId, secure: EntityId| {
+      let mut role = BTreeMap::new();
+      for eid in [plain, secure] {
+        if let Some(writer) = self.writers.get(&eid) {
+          for (prefix, done) in writer.acked_by_participant() {
+            *role.entry(prefix).or_insert(false) |= done;
+          }
+        }
+      }
+      role
+    };
+    let roles = [
+      reader_role(
+        EntityId::SEDP_BUILTIN_PUBLICATIONS_READER,
+        EntityId::SEDP_BUILTIN_PUBLICATIONS_SECURE_READER,
+      ),
+      reader_role(
+        EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_READER,
+        EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_SECURE_READER,
+      ),
+      writer_role(
+        EntityId::SEDP_BUILTIN_PUBLICATIONS_WRITER,
+        EntityId::SEDP_BUILTIN_PUBLICATIONS_SECURE_WRITER,
+      ),
+      writer_role(
+        EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_WRITER,
+        EntityId::SEDP_BUILTIN_SUBSCRIPTIONS_SECURE_WRITER,
+      ),
+    ];
+    DiscoverySyncReport::from_roles(&roles)
+  }
+
   // Returns true when the loop should exit.
   fn drain_queues(
     &mut self,
@@ -400,8 +490,10 @@ impl DPEventLoop {
     preparing_to_stop: &mut bool,
   ) -> bool {
     use std::sync::mpsc::TryRecvError;
+    let mut sync_reports = Vec::new();
     loop {
       match self.stop_poll_receiver.try_recv() {
+        Ok(EventLoopCommand::ReportDiscoverySync(reply)) => sync_reports.push(reply),
         Ok(EventLoopCommand::PrepareStop) => {
           info!("dp_event_loop preparing to stop.");
           *preparing_to_stop = true;
@@ -449,6 +541,11 @@ impl DPEventLoop {
           self.on_remote_participant_authentication_status_changed(guid_prefix);
         }
       }
+    }
+
+    for reply in sync_reports {
+      // The asker may have given up waiting.
+      let _ = reply.send(self.discovery_sync_report());
     }
 
     // Adds have been applied. Ready ids for those endpoints can be handled now,

@@ -136,6 +136,11 @@ pub(crate) struct Reader {
   fragment_assemblers: BTreeMap<GUID, FragmentAssembler>,
   last_fragment_garbage_collect: Timestamp,
   matched_writers: BTreeMap<GUID, RtpsWriterProxy>,
+  /// The last HEARTBEAT of each writer not matched yet. A remote participant sends
+  /// its SPDP announcement and its builtin writers' HEARTBEATs together, and
+  /// Discovery matches those writers only after this reader has dropped the
+  /// HEARTBEATs: answered at the match, they spare a heartbeat period (1 s in Fast DDS).
+  early_heartbeats: BTreeMap<GUID, (Heartbeat, bool)>,
   writer_match_count_total: i32, // total count, never decreases
 
   requested_deadline_missed_count: i32,
@@ -158,6 +163,11 @@ pub(crate) struct Reader {
 const FRAGMENT_ASSEMBLY_TIMEOUT: Duration = Duration::from_secs(10);
 // minimum interval (max frequency) of AssemblyBuffer GC
 const MIN_FRAGMENT_GC_INTERVAL: Duration = Duration::from_secs(2);
+
+// Writers not yet matched whose last HEARTBEAT a reader keeps: enough for the
+// builtin writers of the participants joining at once, bounded against a flood
+// of HEARTBEATs from writers that never appear.
+const EARLY_HEARTBEATS_KEPT: usize = 64;
 
 impl Reader {
   pub(crate) fn new(
@@ -203,6 +213,7 @@ impl Reader {
       fragment_assemblers: BTreeMap::new(),
       last_fragment_garbage_collect: Timestamp::now(),
       matched_writers: BTreeMap::new(),
+      early_heartbeats: BTreeMap::new(),
       writer_match_count_total: 0,
       requested_deadline_missed_count: 0,
       offered_incompatible_qos_count: 0,
@@ -420,7 +431,13 @@ impl Reader {
           // knew it, so that HEARTBEAT was discarded. Without a request the next
           // one comes only after the writer's heartbeat period, and a Reliable
           // reader withholds all samples received in the meantime.
-          if self.reliability != policy::Reliability::BestEffort {
+          if let Some((heartbeat, final_flag)) = self.early_heartbeats.remove(&writer) {
+            let from_writer = MessageReceiverState {
+              source_guid_prefix: writer.prefix,
+              ..MessageReceiverState::default()
+            };
+            self.handle_heartbeat_msg(&heartbeat, final_flag, &from_writer);
+          } else if self.reliability != policy::Reliability::BestEffort {
             if let Some(mut writer_proxy) = self.matched_writers.remove(&writer) {
               self.send_preemptive_acknack_to(&mut writer_proxy);
               self.matched_writers.insert(writer, writer_proxy);
@@ -489,6 +506,9 @@ impl Reader {
   // Entire remote participant was lost.
   // Remove all remote writers belonging to it.
   pub fn participant_lost(&mut self, guid_prefix: GuidPrefix) {
+    self
+      .early_heartbeats
+      .retain(|guid, _| guid.prefix != guid_prefix);
     let lost_writers: Vec<GUID> = self
       .matched_writers
       .range(guid_prefix.range())
@@ -497,6 +517,16 @@ impl Reader {
     for writer in lost_writers {
       self.remove_writer_proxy(writer);
     }
+  }
+
+  /// Per remote participant of the matched writers: whether this Reader holds
+  /// everything their last HEARTBEATs announced (see `DiscoverySyncReport`).
+  pub(crate) fn caught_up_by_participant(&self) -> BTreeMap<GuidPrefix, bool> {
+    let mut by_participant = BTreeMap::new();
+    for (guid, proxy) in &self.matched_writers {
+      *by_participant.entry(guid.prefix).or_insert(true) &= proxy.caught_up();
+    }
+    by_participant
   }
 
   pub fn contains_writer(&self, entity_id: EntityId) -> bool {
@@ -905,6 +935,13 @@ impl Reader {
         "HEARTBEAT from {:?}, but no writer proxy available. topic={:?} reader={:?}",
         writer_guid, self.topic_name, self.my_guid
       );
+      if self.early_heartbeats.len() < EARLY_HEARTBEATS_KEPT
+        || self.early_heartbeats.contains_key(&writer_guid)
+      {
+        self
+          .early_heartbeats
+          .insert(writer_guid, (heartbeat.clone(), final_flag_set));
+      }
       return false;
     }
     // sanity check
@@ -924,6 +961,7 @@ impl Reader {
           return false;
         }
         writer_proxy.received_heartbeat_count = heartbeat.count;
+        writer_proxy.announced_last_sn = Some(heartbeat.last_sn);
 
         // remove changes until first_sn.
         writer_proxy.irrelevant_changes_up_to(heartbeat.first_sn);
@@ -1868,6 +1906,74 @@ mod tests {
       .matched_writer(writer_guid)
       .expect("Did not find a matched writer");
     assert_eq!(writer_proxy.sent_ack_nack_count, 3);
+  }
+
+  #[test]
+  fn reader_answers_a_heartbeat_that_came_before_its_writer_was_matched() {
+    // A remote participant's SPDP and its builtin writers' HEARTBEATs arrive
+    // together; Discovery matches the writers only after the reader dropped the
+    // HEARTBEATs. The reader keeps the last one and answers it at the match.
+    let dds_cache = Arc::new(RwLock::new(DDSCache::new()));
+    let reliable_qos = QosPolicyBuilder::new()
+      .reliability(Reliability::Reliable {
+        max_blocking_time: Duration::from_millis(100),
+      })
+      .build();
+    let topic_cache_handle = dds_cache.write().unwrap().add_new_topic(
+      "early".to_string(),
+      TypeDesc::new("test_type".to_string()),
+      &reliable_qos,
+    );
+    let (notification_sender, _notification_receiver) =
+      crate::mio_source::notification_channel(100);
+    let (_notification_event_source, notification_event_sender) =
+      mio_source::make_poll_channel().unwrap();
+    let (status_sender, _status_receiver) = sync_status_channel::<DataReaderStatus>(4).unwrap();
+    let (participant_status_sender, _participant_status_receiver) =
+      sync_status_channel(16).unwrap();
+    let (_reader_command_sender, reader_command_receiver) =
+      wake_channel::<ReaderCommand>(10, &LoopWaker::new());
+    let mut reader = Reader::new(
+      ReaderIngredients {
+        guid: GUID::dummy_test_guid(EntityKind::READER_NO_KEY_USER_DEFINED),
+        notification_sender,
+        status_sender,
+        topic_name: "early".to_string(),
+        topic_cache_handle,
+        like_stateless: false,
+        qos_policy: reliable_qos.clone(),
+        data_reader_command_receiver: reader_command_receiver,
+        data_reader_waker: Arc::new(Mutex::new(None)),
+        poll_event_sender: notification_event_sender,
+        security_plugins: None,
+        discovery_notify: None,
+      },
+      Rc::new(UDPSender::new(0).unwrap()),
+      new_shared_timer(),
+      participant_status_sender,
+    );
+    let writer_guid = GUID::dummy_test_guid(EntityKind::WRITER_NO_KEY_USER_DEFINED);
+    let from_writer = MessageReceiverState {
+      source_guid_prefix: writer_guid.prefix,
+      ..Default::default()
+    };
+    let early = Heartbeat {
+      reader_id: reader.entity_id(),
+      writer_id: writer_guid.entity_id,
+      first_sn: SequenceNumber::new(1),
+      last_sn: SequenceNumber::new(10),
+      count: 7,
+    };
+    assert!(!reader.handle_heartbeat_msg(&early, false, &from_writer));
+
+    reader.matched_writer_add(writer_guid, EntityId::UNKNOWN, vec![], vec![], &reliable_qos);
+
+    let proxy = reader.matched_writer(writer_guid).expect("matched");
+    assert_eq!(proxy.received_heartbeat_count, 7, "the early HEARTBEAT was not answered");
+    assert_eq!(proxy.sent_ack_nack_count, 1, "one ACKNACK, asking for 1..=10");
+    assert!(reader.early_heartbeats.is_empty());
+    // The same HEARTBEAT again is a duplicate now.
+    assert!(!reader.handle_heartbeat_msg(&early, false, &from_writer));
   }
 
   #[test]

@@ -81,6 +81,10 @@ pub(crate) struct RtpsWriterProxy {
   // one with the full request again made the Writer resend fragments already on
   // their way, overflowing the socket buffer that lost them in the first place.
   pub last_nackfrag_sent: Option<std::time::Instant>,
+
+  // The last sequence number the Writer announced in a HEARTBEAT: the Reader has
+  // everything the Writer had then once `all_ackable_before` passes it.
+  pub announced_last_sn: Option<SequenceNumber>,
 }
 
 impl RtpsWriterProxy {
@@ -104,6 +108,7 @@ impl RtpsWriterProxy {
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
       last_nackfrag_sent: None,
+      announced_last_sn: None,
     }
   }
 
@@ -132,6 +137,13 @@ impl RtpsWriterProxy {
     } else {
       None
     }
+  }
+
+  /// True once this Reader holds every change the Writer's last HEARTBEAT announced.
+  pub fn caught_up(&self) -> bool {
+    self
+      .announced_last_sn
+      .is_some_and(|last| self.ack_base > last)
   }
 
   // Check if we no samples in the received state.
@@ -339,6 +351,7 @@ impl RtpsWriterProxy {
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
       last_nackfrag_sent: None,
+      announced_last_sn: None,
     }
   } // fn
 
@@ -422,6 +435,20 @@ mod bounded_map_tests {
       vec![],
       EntityId::UNKNOWN,
     )
+  }
+
+  // Caught up: a HEARTBEAT has been heard, and everything it announced is in.
+  #[test]
+  fn caught_up_after_everything_the_last_heartbeat_announced() {
+    let mut wp = test_proxy();
+    assert!(!wp.caught_up(), "no HEARTBEAT heard yet");
+    wp.announced_last_sn = Some(SequenceNumber::new(0));
+    assert!(wp.caught_up(), "an empty writer");
+    wp.announced_last_sn = Some(SequenceNumber::new(2));
+    wp.received_changes_add(SequenceNumber::new(1), Timestamp::INVALID);
+    assert!(!wp.caught_up());
+    wp.received_changes_add(SequenceNumber::new(2), Timestamp::INVALID);
+    assert!(wp.caught_up());
   }
 
   // Regression: a best-effort writer sends no HEARTBEAT/GAP, so the changes map

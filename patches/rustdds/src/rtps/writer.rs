@@ -411,6 +411,18 @@ impl Writer {
     self.guid().entity_id.as_token()
   }
 
+  /// Per remote participant of the matched readers: whether they have
+  /// acknowledged every change this Writer has made (see `DiscoverySyncReport`).
+  pub(crate) fn acked_by_participant(&self) -> BTreeMap<GuidPrefix, bool> {
+    let last = self.send_buffer.last_change_sequence_number();
+    let mut by_participant = BTreeMap::new();
+    for (guid, proxy) in &self.readers {
+      let acked = last == SequenceNumber::zero() || proxy.all_acked_before > last;
+      *by_participant.entry(guid.prefix).or_insert(true) &= acked;
+    }
+    by_participant
+  }
+
   pub fn is_reliable(&self) -> bool {
     self.qos_policies.is_reliable()
   }
@@ -857,7 +869,7 @@ impl Writer {
     if !self.is_reliable() {
       return Piggyback::None;
     }
-    if self.my_guid.entity_id.kind().is_built_in() || self.security_plugins.is_some() {
+    if self.asks_on_every_push() {
       return Piggyback::RequestAck;
     }
     self.pushes_since_ack_request += samples;
@@ -867,6 +879,12 @@ impl Writer {
     } else {
       Piggyback::Final
     }
+  }
+
+  /// Built-in (discovery) writers, and writers under DDS Security, ask for an
+  /// acknowledgement with every sample they send (see `push_heartbeat`).
+  fn asks_on_every_push(&self) -> bool {
+    self.my_guid.entity_id.kind().is_built_in() || self.security_plugins.is_some()
   }
 
   pub fn process_pending(&mut self) {
@@ -1696,8 +1714,24 @@ impl Writer {
       reader_proxy.mark_change_sent(unsent_sn);
     }
 
+    let repaired = reader_proxy.first_unsent_change().is_none();
+    if repaired && self.asks_on_every_push() {
+      // The reader has what it asked for: ask it to say so now, as the pushes of
+      // these writers do, not a periodic HEARTBEAT (1 s for discovery) later.
+      let heartbeat = MessageBuilder::new().heartbeat_msg(
+        self.entity_id(),
+        self.send_buffer.first_change_sequence_number(),
+        self.advertised_last_sn(),
+        self.next_heartbeat_count(),
+        self.endianness,
+        reader_guid.entity_id,
+        false,
+        false,
+      );
+      self.add_to_repair_datagram(&mut datagram, heartbeat, 0, reader_proxy);
+    }
     self.flush_repair_datagram(&mut datagram, reader_proxy);
-    if reader_proxy.first_unsent_change().is_none() {
+    if repaired {
       reader_proxy.repair_mode = false;
     }
   } // fn
@@ -3252,6 +3286,22 @@ mod tests {
         f.repair_round();
       }
       assert_eq!(f.unsent(), 0);
+    }
+
+    // A discovery writer that has repaired everything a reader asked for asks it
+    // to acknowledge now (a user writer leaves that to its periodic HEARTBEAT):
+    // `wait_for_discovery_settled` waits for those acknowledgements.
+    #[test]
+    fn a_finished_repair_asks_for_an_acknack_from_discovery_writers_only() {
+      let heartbeats = |f: &Fixture| f.writer.heartbeat_message_counter.load(atomic::Ordering::SeqCst);
+      for (mut f, asks) in [(Fixture::sedp(5, 64), 1), (Fixture::user(5, 64, None), 0)] {
+        f.writer.nack_response_delay = StdDuration::ZERO;
+        f.ack_nack(1..=5, 1);
+        let before = heartbeats(&f);
+        assert_eq!(f.repair_round(), 5);
+        assert!(!f.reader_proxy().repair_mode);
+        assert_eq!(heartbeats(&f) - before, asks);
+      }
     }
 
     // A sample larger than a whole round still goes out, one per round. These

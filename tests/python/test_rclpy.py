@@ -1,0 +1,176 @@
+"""Real rclpy, on rmw_fastrtps_cpp, under the Jazzy and the Kilted wheels, against our nodes:
+what a ROS 2 user's own node sees of a run, of the trainer's services and of its parameters.
+The rclpy side runs in its own venv (tests/ros2/setup.sh), driven by rclpy_peer.RclpyPeer."""
+
+import json
+import os
+import subprocess
+import time
+
+import pytest
+
+from rclpy_peer import DISTROS, RclpyPeer
+
+DOMAIN = 47
+OUR_NODES = {"/causal_arm_sim", "/causal_arm_babbler", "/causal_arm_recorder"}
+
+
+@pytest.fixture(params=DISTROS)
+def distro(request, private_netns):
+    return request.param
+
+
+def ros_env(**extra):
+    return {**os.environ, "ROS_DOMAIN_ID": str(DOMAIN), "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
+            "RUST_LOG": "warn", **extra}
+
+
+def watch_graph(peer, until, every=0.05):
+    """Polls the rclpy node's graph until `until()` is true; returns [(time, graph)]."""
+    seen = []
+    while not until():
+        seen.append((peer.now(), peer.graph()))
+        time.sleep(every)
+    return seen
+
+
+def test_an_rclpy_node_that_was_running_gets_every_step_of_a_launch_and_its_node_names(
+        distro, causal_arm_bin, tmp_path):
+    """The simulator publishes its first step only once discovery with the participants
+    already present has settled both ways (patches/rustdds-early-heartbeats.diff,
+    rustdds-discovery-settled.diff): before, an rclpy echo missed the first ~1.2 s of a run."""
+    steps = 600
+    with RclpyPeer(distro, "rclpy_watcher", ros_env()) as peer:
+        assert peer.info["rmw"] == "rmw_fastrtps_cpp"
+        peer.subscribe(topic="/joint_states", type="sensor_msgs/msg/JointState", qos={"depth": 5000})
+        own_hash = peer.own_type_hash(type="sensor_msgs/msg/JointState")
+        launch = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", str(steps), "--seed", "3",
+                                   "--out", str(tmp_path / "bag")], env=ros_env(),
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        endpoints = []
+        graphs = watch_graph(peer, lambda: launch.poll() is not None
+                             or endpoints.append(peer.endpoints(topic="/joint_states")))
+        out, err = launch.communicate(timeout=120)
+        assert launch.returncode == 0, err[-3000:]
+        samples = peer.take(topic="/joint_states", count=steps, timeout=5)
+
+    stamps = [s["msg"]["header"]["stamp"] for s in samples]
+    assert stamps[:1] == [{"sec": 0, "nanosec": 0}], f"the first step never reached rclpy ({distro}): {stamps[:1]}"
+    times = [st["sec"] + st["nanosec"] * 1e-9 for st in stamps]
+    assert len(samples) == steps, f"rclpy got {len(samples)} of {steps} steps"
+    assert times == sorted(set(times)), "steps out of order or repeated"
+    assert samples[0]["msg"]["name"][0] == "iiwa_joint_1"
+
+    ours = [e for seen in endpoints for e in seen["publishers"] if e["node_name"] == "causal_arm_sim"]
+    assert ours, f"rclpy never saw /joint_states' publisher as causal_arm_sim: {endpoints[-1:]}"
+    assert {e["type_hash"] for e in ours} == {own_hash}, (ours[0], own_hash)
+    named = set().union(*(set(g["nodes"]) for _, g in graphs))
+    assert OUR_NODES <= named, f"node names rclpy saw: {sorted(named)}"
+
+
+@pytest.fixture(scope="module")
+def model_dir(run_cli, tmp_path_factory):
+    from conftest import bag_and_forward_model
+
+    d = tmp_path_factory.mktemp("rclpy_trainer")
+    bag_and_forward_model(run_cli, d, ["exp1", "--profile", "quick", "--steps", "1200", "--seed", "5"],
+                          ["--epochs", "3", "--folds", "2", "--fm-hidden", "32,32"])
+    return d / "models"
+
+
+@pytest.fixture(scope="module", params=DISTROS)
+def trainer_and_peer(request, model_dir, causal_arm_bin, private_netns_module):
+    """Our trainer node on the Fast DDS service mapping, and an rclpy node of DISTRO beside it."""
+    from conftest import node_process
+
+    with node_process(causal_arm_bin.parent / "causal_arm_trainer", ["-p", f"model_dir:={model_dir}"],
+                      ros_env()) as trainer:
+        with RclpyPeer(request.param, "rclpy_client", ros_env()) as peer:
+            yield trainer, peer
+
+
+def test_rclpy_calls_the_trainer_services_and_gets_the_numpy_answer(trainer_and_peer, model_dir):
+    import numpy as np
+    from model_numpy import numpy_predict
+
+    trainer, peer = trainer_and_peer
+    rng = np.random.default_rng(0)
+    state = np.concatenate([rng.normal(0, 0.3, (5, 7)), rng.uniform(0.2, 0.6, (5, 3))], axis=1)
+    action = rng.normal(0, 0.05, (5, 7))
+    request = {"state": state.ravel().tolist(), "action": action.ravel().tolist(), "rows": 5}
+    # Eight at once: within the services' default depth of 10 (rclpy loses replies beyond it).
+    replies = peer.call(service="/trainer/predict_next_state", type="causal_arm_msgs/srv/PredictNextState",
+                        requests=[request] * 8)
+    expected = numpy_predict(model_dir, "fm", np.concatenate([state, action], axis=1))
+    for reply in replies:
+        assert reply["success"], reply["message"]
+        np.testing.assert_allclose(np.array(reply["next_state"]).reshape(5, 10), expected, rtol=1e-4, atol=1e-5)
+
+    rows = 20_000
+    big_state = np.tile(state, (rows // 5, 1))
+    big_action = np.tile(action, (rows // 5, 1))
+    (big,) = peer.call(service="/trainer/predict_next_state", type="causal_arm_msgs/srv/PredictNextState",
+                       requests=[{"state": big_state.ravel().tolist(), "action": big_action.ravel().tolist(),
+                                  "rows": rows}], timeout=120)
+    assert big["success"] and big["rows"] == rows, big["message"]
+    np.testing.assert_allclose(np.array(big["next_state"]).reshape(rows, 10)[-5:], expected, rtol=1e-4, atol=1e-5)
+
+    (bad,) = peer.call(service="/trainer/predict_next_state", type="causal_arm_msgs/srv/PredictNextState",
+                       requests=[{"state": [0.0] * 9, "action": [0.0] * 7, "rows": 1}])
+    assert not bad["success"] and "state has 9 values, expected rows × 10 = 10" in bad["message"]
+    (info,) = peer.call(service="/trainer/model_info", type="causal_arm_msgs/srv/GetModelInfo",
+                        requests=[{"model": "fm"}])
+    assert info["success"] and info["models"] == ["fm"], info
+    assert trainer.poll() is None, "the trainer must keep serving"
+
+
+def test_rclpy_parameters_are_listed_described_and_refused_as_rclcpp_does(trainer_and_peer):
+    _, peer = trainer_and_peer
+    node = "/causal_arm_trainer"
+    (listed,) = peer.call(service=f"{node}/list_parameters", type="rcl_interfaces/srv/ListParameters",
+                          requests=[{}])
+    assert {"folds", "profile", "use_sim_time", "model_dir"} <= set(listed["result"]["names"]), listed
+    (described,) = peer.call(service=f"{node}/describe_parameters", type="rcl_interfaces/srv/DescribeParameters",
+                             requests=[{"names": ["folds", "use_sim_time"]}])
+    folds, sim_time = described["descriptors"]
+    assert folds["read_only"] and not sim_time["read_only"]
+    assert [(r["from_value"], r["to_value"]) for r in folds["integer_range"]] == [(2, 1_000_000)]
+    (got,) = peer.call(service=f"{node}/get_parameters", type="rcl_interfaces/srv/GetParameters",
+                       requests=[{"names": ["folds"]}])
+    assert got["values"][0]["type"] == 2
+    (set_,) = peer.call(service=f"{node}/set_parameters", type="rcl_interfaces/srv/SetParameters",
+                        requests=[{"parameters": [{"name": "folds", "value": {"type": 2, "integer_value": -5}}]}])
+    assert [(r["successful"], r["reason"]) for r in set_["results"]] == [
+        (False, "parameter 'folds' cannot be set because it is read-only")]
+
+
+def test_rclpy_publishes_to_causal_arm_topic_echo(distro, causal_arm_bin):
+    sent = [{"data": f"hello {i}"} for i in range(20)]
+    echo = subprocess.Popen([str(causal_arm_bin), "topic", "echo", "/chatter", "--type", "std_msgs/msg/String",
+                             "--count", str(len(sent)), "--timeout", "60"], env=ros_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    with RclpyPeer(distro, "rclpy_talker", ros_env()) as peer:
+        # Once rclpy counts echo as matched, as a user's talker would; 50 ms apart.
+        peer.publish(topic="/chatter", type="std_msgs/msg/String", messages=sent, period=0.05,
+                     wait_subscribers=1, timeout=30)
+        out, err = echo.communicate(timeout=90)
+    assert echo.returncode == 0, err[-3000:]
+    got = [json.loads(line) for line in out.splitlines()]
+    assert got == sent, f"echo printed {len(got)} of {len(sent)}: {got[:3]}"
+
+
+def test_a_late_rclpy_node_gets_the_latched_robot_description_and_rosout(distro, causal_arm_bin):
+    from conftest import node_process
+
+    with node_process(causal_arm_bin.parent / "causal_arm_sim", [], ros_env()) as sim:
+        time.sleep(1.0)  # the simulator is up and has published before rclpy joins
+        with RclpyPeer(distro, "rclpy_late", ros_env()) as peer:
+            latched = {"transient_local": True, "depth": 1}
+            peer.subscribe(topic="/robot_description", type="std_msgs/msg/String", qos=latched)
+            peer.subscribe(topic="/rosout", type="rcl_interfaces/msg/Log",
+                           qos={"transient_local": True, "depth": 1000})
+            description = peer.take(topic="/robot_description", count=1, timeout=20)
+            logs = peer.take(topic="/rosout", count=1, timeout=20)
+        assert sim.poll() is None, sim.log()[-3000:]
+    assert len(description) == 1 and "<robot" in description[0]["msg"]["data"], description[:1]
+    assert any(log["msg"]["name"] == "causal_arm_sim" for log in logs), logs[:3]

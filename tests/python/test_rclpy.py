@@ -53,6 +53,12 @@ def test_an_rclpy_node_that_was_running_gets_every_step_of_a_launch_and_its_node
         out, err = launch.communicate(timeout=120)
         assert launch.returncode == 0, err[-3000:]
         samples = peer.take(topic="/joint_states", count=steps, timeout=5)
+        # Each node's participant says goodbye as it exits (patches/rustdds-dispose-before-stop.diff):
+        # otherwise `ros2 node list` keeps showing it until its lease (20 s) runs out.
+        gone_by = time.monotonic() + 5
+        while OUR_NODES & set(peer.graph()["nodes"]) and time.monotonic() < gone_by:
+            time.sleep(0.1)
+        lingering = OUR_NODES & set(peer.graph()["nodes"])
 
     stamps = [s["msg"]["header"]["stamp"] for s in samples]
     assert stamps[:1] == [{"sec": 0, "nanosec": 0}], f"the first step never reached rclpy ({distro}): {stamps[:1]}"
@@ -66,6 +72,7 @@ def test_an_rclpy_node_that_was_running_gets_every_step_of_a_launch_and_its_node
     assert {e["type_hash"] for e in ours} == {own_hash}, (ours[0], own_hash)
     named = set().union(*(set(g["nodes"]) for _, g in graphs))
     assert OUR_NODES <= named, f"node names rclpy saw: {sorted(named)}"
+    assert not lingering, f"still in rclpy's graph 5 s after the launch ended: {sorted(lingering)}"
 
 
 @pytest.fixture(scope="module")

@@ -500,6 +500,7 @@ impl DPEventLoop {
         }
         Ok(EventLoopCommand::Stop) => {
           info!("Stopping dp_event_loop");
+          self.push_last_writes();
           return true;
         }
         Err(TryRecvError::Empty) => break,
@@ -673,6 +674,19 @@ impl DPEventLoop {
         break;
       }
     }
+  }
+
+  // Discovery writes its participant's dispose just before the loop is told to
+  // stop, often in the same wake-up. Without this last push the dispose stayed
+  // queued, and peers kept the participant, with its node names, until its lease
+  // ran out.
+  fn push_last_writes(&mut self) {
+    for eid in self.writer_ready.drain_unique() {
+      if let Some(writer) = self.writers.get_mut(&eid) {
+        writer.process_pending();
+      }
+    }
+    self.service_outbound();
   }
 
   fn service_outbound(&mut self) {

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Reach effector targets with the learned inverse model, as a ROS 2 user's own node would.
 
-The loop an rclpy user would write, here on CycloneDDS's Python binding (the middleware of
-rmw_cyclonedds, so the topics, types and service mapping are the real ROS 2 ones):
+An rclpy node with the colcon-built `causal_arm_msgs` (README, "From rclpy"); under either
+rmw, as long as the trainer speaks the same service mapping (RMW_IMPLEMENTATION). Its loop:
 
 1. take the simulator's state of this step: /joint_states and /end_effector/pose;
 2. ask /trainer/predict_action for the action that moves the effector a full --step
@@ -19,7 +19,7 @@ ROS domain; the simulator must take actions from a node that is not its graph's 
     causal_arm_trainer --ros-args -p model_dir:=models/exp1   # from `causal-arm train`
     #   (a directory holding only an IM: add -p forward_model:=im-mono, as this loop never
     #   asks the forward model)
-    python examples/python/im_reach.py --target 0.4 0.2 0.9 --target -0.3 0.3 1.0 \\
+    python3 examples/python/im_reach.py --target 0.4 0.2 0.9 --target -0.3 0.3 1.0 \\
         --steps-per-target 300
 
 Each target gets --steps-per-target steps of the simulator's run, in order, the arm going
@@ -30,25 +30,19 @@ the first step within 1 cm and within 5 mm and the final distance.
 import argparse
 import json
 import math
-import os
-import pathlib
 import random
 import sys
 import time
 import xml.etree.ElementTree as ET
 
-# The IDL classes of the ROS 2 types (as rosidl would generate them for Python).
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "tests" / "python"))
+import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from cyclonedds.domain import DomainParticipant  # noqa: E402
-from cyclonedds.pub import DataWriter  # noqa: E402
-from cyclonedds.sub import DataReader  # noqa: E402
-from cyclonedds.topic import Topic  # noqa: E402
-
-from ros_idl import (  # noqa: E402
-    Action, Header, JointState, MagnetState, ObjectColor, PoseStamped, PredictActionReply,
-    PredictActionRequest, RosString, ServiceClient, latched_qos, ros_default_qos,
-)
+from causal_arm_msgs.msg import Action, MagnetState, ObjectColor
+from causal_arm_msgs.srv import PredictAction
+from geometry_msgs.msg import PoseStamped
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
 
 JOINTS = [f"iiwa_joint_{i}" for i in range(1, 8)]
 STALL_STEPS = 20
@@ -70,7 +64,7 @@ def joint_limits(urdf: str) -> list:
 class Reacher:
     """The controller: what to command for one state, given the IM service."""
 
-    def __init__(self, im: ServiceClient, step: float, seed: int):
+    def __init__(self, im, step: float, seed: int):
         self.im, self.step = im, step
         self.rng = random.Random(seed)
         self.target, self.best, self.since_best = None, math.inf, 0
@@ -83,11 +77,11 @@ class Reacher:
         if distance == 0.0:
             return [0.0] * len(q)
         goal = [e + d * self.step / distance for e, d in zip(ef, offset)]
-        reply = self.im.call(PredictActionRequest(state=q + ef, next_state=goal, rows=1))
+        reply = self.im(PredictAction.Request(state=q + ef, next_state=goal, rows=1))
         if not reply.success:
             raise SystemExit(f"/trainer/predict_action refused the request: {reply.message}")
         scale = min(1.0, distance / self.step)
-        return [a * scale for a in reply.action[: len(q)]]
+        return [float(a) * scale for a in reply.action[: len(q)]]
 
     def stalled(self, target: list, distance: float) -> bool:
         if target != self.target:
@@ -102,15 +96,64 @@ class Reacher:
         return True
 
 
-def wait_for_description(participant, timeout: float) -> str:
-    reader = DataReader(participant, Topic(participant, "rt/robot_description", RosString), qos=latched_qos())
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        for m in reader.take(N=1):
-            if isinstance(m, RosString):
-                return m.data
-        time.sleep(0.05)
-    raise SystemExit(f"no /robot_description within {timeout} s: is the simulator running in this ROS domain?")
+class Node:
+    """The node's DDS side: state in, actions out, the IM service, the arm's description."""
+
+    def __init__(self, timeout: float):
+        self.node = rclpy.create_node("im_reach")
+        self.timeout = timeout
+        reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        self.states, self.poses, self.description = {}, {}, None
+        self.node.create_subscription(JointState, "/joint_states", self.keep(self.states), reliable)
+        self.node.create_subscription(PoseStamped, "/end_effector/pose", self.keep(self.poses), reliable)
+        # The simulator waits for a reader of every state topic its babbler would read.
+        for kind, topic in [(PoseStamped, "/object/pose"), (ObjectColor, "/object/color"),
+                            (MagnetState, "/magnet/state")]:
+            self.node.create_subscription(kind, topic, lambda _: None, reliable)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.node.create_subscription(String, "/robot_description", self.described, latched)
+        self.actions = self.node.create_publisher(Action, "/babbler/action", reliable)
+        self.im = self.node.create_client(PredictAction, "/trainer/predict_action")
+
+    @staticmethod
+    def keep(into: dict):
+        return lambda m: into.__setitem__(stamp_ns(m.header), m)
+
+    def described(self, message):
+        self.description = message.data
+
+    def wait_for_the_graph(self) -> str:
+        if not self.im.wait_for_service(timeout_sec=self.timeout):
+            raise SystemExit("/trainer/predict_action has no server: is the trainer node running?")
+        deadline = time.monotonic() + self.timeout
+        while self.description is None:
+            if time.monotonic() > deadline:
+                raise SystemExit(f"no /robot_description within {self.timeout} s: "
+                                 "is the simulator running in this ROS domain?")
+            rclpy.spin_once(self.node, timeout_sec=0.05)
+        return self.description
+
+    def predict_action(self, request):
+        future = self.im.call_async(request)
+        rclpy.spin_until_future_complete(self.node, future, timeout_sec=self.timeout)
+        if not future.done():
+            raise SystemExit(f"/trainer/predict_action did not answer within {self.timeout} s")
+        return future.result()
+
+    def next_state(self):
+        """The newest step with both its joint state and its effector pose; older ones go."""
+        deadline = time.monotonic() + self.timeout
+        while not (ready := sorted(set(self.states) & set(self.poses))):
+            if time.monotonic() > deadline:
+                raise SystemExit(f"the simulator sent no state for {self.timeout} s")
+            rclpy.spin_once(self.node, timeout_sec=0.01)
+        stamp = ready[-1]
+        js, pose = self.states.pop(stamp), self.poses.pop(stamp)
+        for kept in (self.states, self.poses):
+            for old in [k for k in kept if k <= stamp]:
+                del kept[old]
+        return js, pose
 
 
 def main() -> int:
@@ -119,51 +162,29 @@ def main() -> int:
                         help="effector target in the world frame, m (repeat for several)")
     parser.add_argument("--steps-per-target", type=int, default=300)
     parser.add_argument("--step", type=float, default=0.1, help="displacement asked of the IM per step, m")
-    parser.add_argument("--domain", type=int, default=None, help="ROS domain (default: ROS_DOMAIN_ID or 0)")
     parser.add_argument("--timeout", type=float, default=30.0, help="give up when the simulator is silent this long, s")
     parser.add_argument("--seed", type=int, default=0, help="seed of the babbled steps")
-    args = parser.parse_args()
+    args, ros_args = parser.parse_known_args()
     if args.steps_per_target < 1 or not args.step > 0:
         parser.error("--steps-per-target and --step must be positive")
 
-    participant = DomainParticipant(args.domain if args.domain is not None else int(os.environ.get("ROS_DOMAIN_ID", 0)))
-    qos = ros_default_qos(depth=100)
-    reader = lambda topic, kind: DataReader(participant, Topic(participant, topic, kind), qos=qos)  # noqa: E731
-    joint_states, ef_poses = reader("rt/joint_states", JointState), reader("rt/end_effector/pose", PoseStamped)
-    # The simulator waits for a reader of every state topic its babbler would read.
-    others = [reader("rt/object/pose", PoseStamped), reader("rt/object/color", ObjectColor),
-              reader("rt/magnet/state", MagnetState)]
-    actions = DataWriter(participant, Topic(participant, "rt/babbler/action", Action), qos=qos)
-    im = ServiceClient(participant, "/trainer/predict_action", PredictActionRequest, PredictActionReply)
-    if not im.wait_for_server(timeout=args.timeout):
-        raise SystemExit("/trainer/predict_action has no server: is the trainer node running?")
-    limits = joint_limits(wait_for_description(participant, args.timeout))
-    reacher = Reacher(im, args.step, args.seed)
+    rclpy.init(args=[sys.argv[0], *ros_args])
+    try:
+        report = reach(Node(args.timeout), args)
+    finally:
+        rclpy.try_shutdown()
+    json.dump({"targets": report, "steps_per_target": args.steps_per_target, "step_m": args.step}, sys.stdout, indent=2)
+    print()
+    return 0
 
+
+def reach(node: Node, args) -> list:
+    limits = joint_limits(node.wait_for_the_graph())
+    reacher = Reacher(node.predict_action, args.step, args.seed)
     targets = [list(t) for t in args.target]
     report = [{"target": t, "within_1cm_at": None, "within_5mm_at": None, "final_error": None} for t in targets]
-    states, poses, step = {}, {}, 0
-    last_heard = time.monotonic()
-    while step < len(targets) * args.steps_per_target:
-        for m in joint_states.take(N=100):
-            if isinstance(m, JointState):
-                states[stamp_ns(m.header)] = m
-        for m in ef_poses.take(N=100):
-            if isinstance(m, PoseStamped):
-                poses[stamp_ns(m.header)] = m
-        for o in others:
-            o.take(N=100)
-        ready = sorted(set(states) & set(poses))
-        if not ready:
-            if time.monotonic() - last_heard > args.timeout:
-                raise SystemExit(f"the simulator sent no state for {args.timeout} s after {step} steps")
-            time.sleep(0.0005)
-            continue
-        last_heard = time.monotonic()
-        stamp = ready[-1]
-        js, pose = states.pop(stamp), poses.pop(stamp)
-        states = {k: v for k, v in states.items() if k > stamp}
-        poses = {k: v for k, v in poses.items() if k > stamp}
+    for step in range(len(targets) * args.steps_per_target):
+        js, pose = node.next_state()
         q = [js.position[js.name.index(n)] for n in JOINTS]
         p = pose.pose.position
         ef = [p.x, p.y, p.z]
@@ -178,12 +199,11 @@ def main() -> int:
                 entry["within_5mm_at"] = k
         deltas = [0.0] * 7 if entry["within_5mm_at"] is not None else reacher.joint_deltas(q, ef, targets[index])
         goal = [min(max(a + d, lo), hi) for a, d, (lo, hi) in zip(q, deltas, limits)]
-        actions.write(Action(header=Header(stamp=js.header.stamp), episode=0, step=step,
-                             joint_deltas=[g - a for g, a in zip(goal, q)], joint_targets=goal, magnet=0))
-        step += 1
-    json.dump({"targets": report, "steps_per_target": args.steps_per_target, "step_m": args.step}, sys.stdout, indent=2)
-    print()
-    return 0
+        action = Action(episode=0, step=step, joint_deltas=[g - a for g, a in zip(goal, q)], joint_targets=goal,
+                        magnet=0)
+        action.header.stamp = js.header.stamp
+        node.actions.publish(action)
+    return report
 
 
 if __name__ == "__main__":

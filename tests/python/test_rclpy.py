@@ -181,3 +181,59 @@ def test_a_late_rclpy_node_gets_the_latched_robot_description_and_rosout(distro,
         assert sim.poll() is None, sim.log()[-3000:]
     assert len(description) == 1 and "<robot" in description[0]["msg"]["data"], description[:1]
     assert any(log["msg"]["name"] == "causal_arm_sim" for log in logs), logs[:3]
+
+
+def test_rclpy_lists_the_trainers_services_with_their_types(trainer_and_peer):
+    """`ros2 node info /causal_arm_trainer` as rclpy reads the graph."""
+    _, peer = trainer_and_peer
+    deadline = time.monotonic() + 10
+    while True:
+        services = peer.graph()["nodes"].get("/causal_arm_trainer", {}).get("services", {})
+        if "/trainer/predict_next_state" in services or time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
+    expected = {
+        "/trainer/predict_next_state": ["causal_arm_msgs/srv/PredictNextState"],
+        "/trainer/predict_action": ["causal_arm_msgs/srv/PredictAction"],
+        "/trainer/rollout": ["causal_arm_msgs/srv/Rollout"],
+        "/trainer/model_info": ["causal_arm_msgs/srv/GetModelInfo"],
+        "/causal_arm_trainer/set_parameters": ["rcl_interfaces/srv/SetParameters"],
+    }
+    assert {name: services.get(name) for name in expected} == expected, services
+
+
+def test_causal_arm_play_reaches_an_rclpy_subscriber(distro, run_cli, causal_arm_bin, tmp_path):
+    steps = 300
+    r = run_cli("generate", "exp1", "--steps", str(steps), "--seed", "8", "--out", tmp_path / "bag")
+    assert r.returncode == 0, r.stderr
+    with RclpyPeer(distro, "rclpy_listener", ros_env()) as peer:
+        peer.subscribe(topic="/joint_states", type="sensor_msgs/msg/JointState", qos={"depth": 5000})
+        r = run_cli("play", tmp_path / "bag", "--rate", "0", "--topics", "/joint_states", env=ros_env())
+        assert r.returncode == 0, r.stderr
+        samples = peer.take(topic="/joint_states", count=steps, timeout=10)
+    stamps = [(s["msg"]["header"]["stamp"]["sec"], s["msg"]["header"]["stamp"]["nanosec"]) for s in samples]
+    assert len(samples) == steps, f"rclpy got {len(samples)} of {steps} played messages"
+    assert stamps == sorted(set(stamps)) and stamps[0] == (0, 0)
+
+
+def test_an_unsecured_rclpy_node_gets_nothing_from_a_secured_talker(distro, run_cli, causal_arm_bin, tmp_path):
+    """A secured rclpy peer cannot be tested: the wheels' Fast DDS is built without DDS
+    Security ("This Fast DDS version doesn't have the security libraries")."""
+    keystore = tmp_path / "keystore"
+    domain = {"ROS_DOMAIN_ID": str(DOMAIN)}
+    for args in (("create-keystore", keystore), ("create-enclave", keystore, "/talker")):
+        r = run_cli("security", *args, env=domain)
+        assert r.returncode == 0, r.stderr
+    secured = ros_env(ROS_SECURITY_ENABLE="true", ROS_SECURITY_STRATEGY="Enforce",
+                      ROS_SECURITY_KEYSTORE=str(keystore), ROS_SECURITY_ENCLAVE_OVERRIDE="/talker")
+    with RclpyPeer(distro, "rclpy_outsider", ros_env()) as peer:
+        peer.subscribe(topic="/chatter", type="std_msgs/msg/String", qos={"depth": 100})
+        got = []
+        for env in (secured, ros_env()):  # then the control: the same talker unsecured
+            talker = subprocess.run([str(causal_arm_bin), "topic", "pub", "/chatter", "--type",
+                                     "std_msgs/msg/String", "--json", '{"data": "secret"}', "--count", "30",
+                                     "--rate", "10"], env=env, capture_output=True, text=True, timeout=60)
+            assert talker.returncode == 0, talker.stderr[-3000:]
+            got.append(peer.take(topic="/chatter", count=1, timeout=2))
+    assert got[0] == [], f"an unauthenticated rclpy node read {len(got[0])} secured samples"
+    assert got[1], "the control failed: rclpy got nothing from the unsecured talker either"

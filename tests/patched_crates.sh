@@ -11,6 +11,8 @@ DIR=$ROOT/target/patched-crates
 mkdir -p "$DIR"
 rm -rf "$DIR/rustdds" "$DIR/ros2-client"
 cp -r patches/rustdds patches/ros2-client "$DIR/"
+# Our lock pins every dependency they share with us; only their dev-dependencies resolve anew.
+cp Cargo.lock "$DIR/"
 cat > "$DIR/Cargo.toml" <<'TOML'
 [workspace]
 members = ["rustdds", "ros2-client"]

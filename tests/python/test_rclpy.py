@@ -13,6 +13,21 @@ from rclpy_peer import DISTROS, RclpyPeer
 
 DOMAIN = 47
 OUR_NODES = {"/causal_arm_sim", "/causal_arm_babbler", "/causal_arm_recorder"}
+# Every topic of a launch, with its type (crates/protocol/src/topics.rs).
+LAUNCH_TOPICS = {
+    "/joint_states": "sensor_msgs/msg/JointState",
+    "/end_effector/pose": "geometry_msgs/msg/PoseStamped",
+    "/object/pose": "geometry_msgs/msg/PoseStamped",
+    "/object/color": "causal_arm_msgs/msg/ObjectColor",
+    "/magnet/state": "causal_arm_msgs/msg/MagnetState",
+    "/clock": "rosgraph_msgs/msg/Clock",
+    "/tf": "tf2_msgs/msg/TFMessage",
+    "/tf_static": "tf2_msgs/msg/TFMessage",
+    "/scene/markers": "visualization_msgs/msg/MarkerArray",
+    "/robot_description": "std_msgs/msg/String",
+    "/babbler/action": "causal_arm_msgs/msg/Action",
+    "/recorder/ack": "rosgraph_msgs/msg/Clock",
+}
 
 
 @pytest.fixture(params=DISTROS)
@@ -39,17 +54,17 @@ def test_an_rclpy_node_that_was_running_gets_every_step_of_a_launch_and_its_node
     """The simulator publishes its first step only once discovery with the participants
     already present has settled both ways (patches/rustdds-early-heartbeats.diff,
     rustdds-discovery-settled.diff): before, an rclpy echo missed the first ~1.2 s of a run."""
-    steps = 600
+    steps = 2000
     with RclpyPeer(distro, "rclpy_watcher", ros_env()) as peer:
         assert peer.info["rmw"] == "rmw_fastrtps_cpp"
         peer.subscribe(topic="/joint_states", type="sensor_msgs/msg/JointState", qos={"depth": 5000})
-        own_hash = peer.own_type_hash(type="sensor_msgs/msg/JointState")
+        own_hashes = {t: peer.own_type_hash(type=t) for t in set(LAUNCH_TOPICS.values())}
         launch = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", str(steps), "--seed", "3",
                                    "--out", str(tmp_path / "bag")], env=ros_env(),
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         endpoints = []
         graphs = watch_graph(peer, lambda: launch.poll() is not None
-                             or endpoints.append(peer.endpoints(topic="/joint_states")))
+                             or endpoints.append(peer.endpoints_of(topics=list(LAUNCH_TOPICS))))
         out, err = launch.communicate(timeout=120)
         assert launch.returncode == 0, err[-3000:]
         samples = peer.take(topic="/joint_states", count=steps, timeout=5)
@@ -67,9 +82,15 @@ def test_an_rclpy_node_that_was_running_gets_every_step_of_a_launch_and_its_node
     assert times == sorted(set(times)), "steps out of order or repeated"
     assert samples[0]["msg"]["name"][0] == "iiwa_joint_1"
 
-    ours = [e for seen in endpoints for e in seen["publishers"] if e["node_name"] == "causal_arm_sim"]
-    assert ours, f"rclpy never saw /joint_states' publisher as causal_arm_sim: {endpoints[-1:]}"
-    assert {e["type_hash"] for e in ours} == {own_hash}, (ours[0], own_hash)
+    for topic, type_ in LAUNCH_TOPICS.items():
+        ours = [e for seen in endpoints for e in seen[topic]["publishers"] if "/" + e["node_name"] in OUR_NODES]
+        assert ours, (f"rclpy never saw a publisher of {topic} among our nodes: "
+                      f"{[seen[topic]['publishers'] for seen in endpoints][-1:]}")
+        assert {(e["topic_type"], e["type_hash"]) for e in ours} == {(type_, own_hashes[type_])}, (topic, ours[0])
+    # What a bag needs is sent reliably; the description is latched (`ros2 topic info -v`).
+    qos = {t: {(e["reliability"], e["durability"]) for seen in endpoints for e in seen[t]["publishers"]}
+           for t in ("/joint_states", "/robot_description")}
+    assert qos == {"/joint_states": {("RELIABLE", "VOLATILE")}, "/robot_description": {("RELIABLE", "TRANSIENT_LOCAL")}}, qos
     named = set().union(*(set(g["nodes"]) for _, g in graphs))
     assert OUR_NODES <= named, f"node names rclpy saw: {sorted(named)}"
     assert not lingering, f"still in rclpy's graph 5 s after the launch ended: {sorted(lingering)}"

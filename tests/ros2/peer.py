@@ -162,6 +162,10 @@ class Peer:
             "subscriptions": [endpoint_to_dict(i) for i in self.node.get_subscriptions_info_by_topic(topic)],
         }
 
+    def endpoints_of(self, topics):
+        """`endpoints` of several topics in one request."""
+        return {topic: self.endpoints(topic) for topic in topics}
+
     def own_type_hash(self, type):
         """The type hash this rclpy gives `type`: from its own publisher's endpoint."""
         topic = "/rclpy_peer_type_probe_" + type.replace("/", "_")

@@ -76,6 +76,9 @@ pub fn answer_states(
             topics::ACTION,
         );
     }
+    // Nodes that were running before the run (an rclpy `ros2 node list`) know this one, and
+    // its actions, from the first step.
+    node.wait_for_discovery_settled(crate::SETTLE);
 
     let per_episode = run.options.plan.steps_per_episode;
     let total = run.options.plan.total_steps();

@@ -112,6 +112,8 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
     let feeds = record_feeds(&mut source, &qos::recorded())?;
     let mut latched = LatchedFeed::new(&mut node, port)?;
     let ack = Outlet::<Clock>::open(&mut node, port, ACK_TOPIC, qos::default_reliable())?;
+    // Nodes that were running before the run know this one from the first step.
+    node.wait_for_discovery_settled(crate::SETTLE);
 
     let start = run.options.start_step;
     let mut sink = open_sink(

@@ -691,6 +691,10 @@ impl DomainParticipant {
           && known.is_subset(&report(deadline).settled)
           && discovery_db_read(&db).remote_participants() == known
         {
+          // A writer's first HEARTBEAT to a reader matched during the exchange may
+          // have reached it before it knew the writer, and was dropped: announce
+          // again now that both sides know each other, not a heartbeat period later.
+          let _ = event_loop.send(EventLoopCommand::AnnounceWriters);
           return Vec::new();
         }
       }

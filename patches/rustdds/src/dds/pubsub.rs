@@ -1326,10 +1326,12 @@ impl InnerSubscriber {
     )?;
 
     // Send reader ingredients to DP event loop, where the actual reader will be
-    // constructed
+    // constructed. Waits while the queue is full, as adding a writer does: a
+    // burst of readers (a node starting, or the event loop busy) otherwise
+    // failed with "sending on a full channel".
     self
       .sender_add_reader
-      .try_send(new_reader)
+      .send(new_reader)
       .or_else(|e| create_error_poisoned!("Cannot add DataReader. Error: {}", e))?;
 
     // Return the DataReader to user

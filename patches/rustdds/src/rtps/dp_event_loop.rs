@@ -75,6 +75,8 @@ pub(crate) enum EventLoopCommand {
   PrepareStop,
   /// Answered after the discovery notifications queued before it are applied.
   ReportDiscoverySync(std::sync::mpsc::Sender<DiscoverySyncReport>),
+  /// Every reliable writer with a reader still behind sends a HEARTBEAT now.
+  AnnounceWriters,
 }
 
 /// How far the endpoint exchange (SEDP) with each remote participant has come,
@@ -494,6 +496,13 @@ impl DPEventLoop {
     loop {
       match self.stop_poll_receiver.try_recv() {
         Ok(EventLoopCommand::ReportDiscoverySync(reply)) => sync_reports.push(reply),
+        Ok(EventLoopCommand::AnnounceWriters) => {
+          for writer in self.writers.values_mut() {
+            if writer.is_reliable() {
+              writer.handle_heartbeat_tick(false);
+            }
+          }
+        }
         Ok(EventLoopCommand::PrepareStop) => {
           info!("dp_event_loop preparing to stop.");
           *preparing_to_stop = true;

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Installs the Debian/Ubuntu packages the tests need and a fresh machine lacks (nothing
-# when all are present): the network namespace tools, the venv module, a C/C++ toolchain,
-# OpenSSL for DDS Security, and Fast DDS for the peer that plays rmw_fastrtps
-# (tests/fastdds). Called by tests/run_all.sh, so the README's test command sets itself up.
+# when all are present): the network namespace tools, the venv module, a C/C++ toolchain
+# and OpenSSL for DDS Security. Called by tests/run_all.sh, so the README's test command sets
+# itself up. (rmw_fastrtps comes with the ROS 2 wheels: tests/ros2/setup.sh.)
 set -euo pipefail
 SUDO=""
 if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
@@ -16,9 +16,6 @@ command -v pkg-config >/dev/null || need+=(pkg-config)
 # DDS Security (rustdds' `security` feature) links OpenSSL; `openssl` verifies keystores in tests.
 pkg-config --exists openssl 2>/dev/null || need+=(libssl-dev)
 command -v openssl >/dev/null || need+=(openssl)
-# A Fast DDS peer (tests/fastdds) acts as rmw_fastrtps in the interop tests.
-[ -e /usr/include/fastdds/dds/domain/DomainParticipant.hpp ] || need+=(libfastrtps-dev)
-command -v g++ >/dev/null || need+=(g++)
 if [ "${#need[@]}" -gt 0 ]; then
   echo "installing: ${need[*]}"
   $SUDO apt-get update -q

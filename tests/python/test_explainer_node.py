@@ -1,13 +1,14 @@
 """`causal-arm explain` and the explainer node, checked from outside: the files it writes
 (read with numpy), the latched /explainer/relevance report and the /explainer/explain
-service as an independent ROS 2 peer (CycloneDDS Python, rmw_cyclonedds layout) sees them,
-and bad input for both."""
+service as independent ROS 2 peers (CycloneDDS Python, rmw_cyclonedds layout; real rclpy on
+rmw_fastrtps_cpp) see them, and bad input for both."""
 
 import json
 import os
 import subprocess
 import time
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from cyclonedds.idl import types as t
 import ros_idl as idl
 from conftest import bag_and_forward_model, node_process
 from model_numpy import load_safetensors, numpy_predict
+from rclpy_peer import DISTROS
 
 DOMAIN = 43
 # Observations of the node's report (Kernel SHAP and CAI): a few seconds on this bag.
@@ -363,7 +365,6 @@ def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply(exp2, causal_arm
 
 def test_the_advertised_deep_limit_reaches_our_own_client(exp2, explainer_node, run_cli, tmp_path):
     """1000 rows, the advertised Deep SHAP limit: 5.7 MB to `causal-arm service call`."""
-    from types import SimpleNamespace
 
     rows, request = deep_request(exp2, 1000)
     path = tmp_path / "request.json"
@@ -376,23 +377,26 @@ def test_the_advertised_deep_limit_reaches_our_own_client(exp2, explainer_node, 
     check_deep_reply(exp2, rows, SimpleNamespace(**json.loads(r.stdout)))
 
 
-def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply_to_fastdds(exp2, causal_arm_bin, private_netns):
-    """rmw_fastrtps's mapping, a Fast DDS client (tests/fastdds): three concurrent requests,
-    1000 rows (the advertised limit, 5.7 MB) first, each answered with its own reply."""
-    import fastdds
+@pytest.mark.parametrize("distro", DISTROS)
+def test_the_advertised_deep_limit_is_a_fresh_nodes_first_reply_to_rclpy(exp2, causal_arm_bin, distro, private_netns):
+    """Real rclpy on rmw_fastrtps_cpp: three concurrent requests, 1000 rows (the advertised
+    limit, a 5.7 MB reply) first, each answered with its own attributions, checked against NumPy."""
+    from rclpy_peer import RclpyPeer
 
-    peer = fastdds.build()
     d, _ = exp2
-    domain = DOMAIN + 2
-    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_fastrtps_cpp", ROS_DOMAIN_ID=str(domain))
+    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_fastrtps_cpp", ROS_DOMAIN_ID=str(DOMAIN + 2))
     params = ["-p", f"model_dir:={d / 'models'}", "-p", f"bag:={d / 'bag'}", "-p", f"cache:={d / 'cache'}",
               "-p", f"samples:={NODE_SAMPLES}"]
     made = [deep_request(exp2, n) for n in (1000, 3, 100)]
+    requests = [{"method": r.method, "state": r.state, "action": r.action, "rows": r.rows, "background": 0}
+                for _, r in made]
     with node_process(causal_arm_bin.parent / "causal_arm_explainer", params, env) as explainer:
-        replies = fastdds.call(peer, domain, "/explainer/explain", idl.ExplainRequest, idl.ExplainReply,
-                               [request for _, request in made], timeout=120, server=explainer)
+        with RclpyPeer(distro, "rclpy_explain_client", env) as peer:
+            replies = peer.call(service="/explainer/explain", type="causal_arm_msgs/srv/Explain",
+                                requests=requests, timeout=180)
+        assert explainer.poll() is None, explainer.log()[-3000:]
     for (rows, _), reply in zip(made, replies):
-        check_deep_reply(exp2, rows, reply)
+        check_deep_reply(exp2, rows, SimpleNamespace(**reply))
 
 
 def test_the_advertised_deep_limit_reaches_a_client_after_a_smaller_reply(exp2, participant, explainer_node):

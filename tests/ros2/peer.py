@@ -140,6 +140,34 @@ class Peer:
         finally:
             self.node.destroy_client(client)
 
+    def serve(self, service, type, reply):
+        """Serves `service` with `reply` to every request; `served` returns the requests."""
+        cls = interface(type)
+        self.inbox.setdefault(service, [])
+
+        def answer(request, response, service=service):
+            with self.lock:
+                self.inbox[service].append((time.monotonic(), to_dict(request)))
+            return from_dict(cls.Response, reply)
+
+        self.node.create_service(cls, service, answer)
+        return True
+
+    def served(self, service, count=0, timeout=0.0):
+        """The requests `service` answered so far (as `take` gives a topic's samples)."""
+        return self.take(topic=service, count=count, timeout=timeout)
+
+    def set_own_parameters(self, values):
+        """Sets this node's parameters (e.g. `{"use_sim_time": true}`), as `ros2 param set` would."""
+        from rclpy.parameter import Parameter
+
+        results = self.node.set_parameters([Parameter(k, value=v) for k, v in values.items()])
+        return [r.successful for r in results]
+
+    def clock_now(self):
+        """This node's clock in ns: simulated time from /clock once `use_sim_time` is true."""
+        return self.node.get_clock().now().nanoseconds
+
     def graph(self):
         """The graph as `ros2 node list` / `ros2 node info` / `ros2 topic info -v` see it."""
         n = self.node
@@ -156,15 +184,17 @@ class Peer:
                 nodes[full] = {"error": str(e)}
         return {"nodes": nodes, "topics": dict(n.get_topic_names_and_types())}
 
-    def endpoints(self, topic):
+    def endpoints(self, topic, no_mangle=False):
+        """`ros2 topic info -v`; with `no_mangle`, a DDS topic name as is (`rq/...Request`)."""
+        n = self.node
         return {
-            "publishers": [endpoint_to_dict(i) for i in self.node.get_publishers_info_by_topic(topic)],
-            "subscriptions": [endpoint_to_dict(i) for i in self.node.get_subscriptions_info_by_topic(topic)],
+            "publishers": [endpoint_to_dict(i) for i in n.get_publishers_info_by_topic(topic, no_mangle)],
+            "subscriptions": [endpoint_to_dict(i) for i in n.get_subscriptions_info_by_topic(topic, no_mangle)],
         }
 
-    def endpoints_of(self, topics):
+    def endpoints_of(self, topics, no_mangle=False):
         """`endpoints` of several topics in one request."""
-        return {topic: self.endpoints(topic) for topic in topics}
+        return {topic: self.endpoints(topic, no_mangle) for topic in topics}
 
     def own_type_hash(self, type):
         """The type hash this rclpy gives `type`: from its own publisher's endpoint."""
@@ -179,6 +209,31 @@ class Peer:
             raise TimeoutError(f"own publisher of {type} not in the graph")
         finally:
             self.node.destroy_publisher(publisher)
+
+    def service_endpoints(self, service, type, timeout=10.0):
+        """The type hashes rmw_fastrtps reads on `service`'s DDS topics (rq/…Request,
+        rr/…Reply): {"client": [request writer, reply reader], "server": [request reader,
+        reply writer]}, the client being this node's own, the server the first other one."""
+        client = self.node.create_client(interface(type), service)
+        me = self.node.get_name()
+        try:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise TimeoutError(f"no server for {service} within {timeout} s")
+            deadline = time.monotonic() + timeout
+            while True:
+                request = self.endpoints("rq" + service + "Request", no_mangle=True)
+                reply = self.endpoints("rr" + service + "Reply", no_mangle=True)
+                sides = {
+                    "client": [[e["type_hash"] for e in request["publishers"] if e["node_name"] == me],
+                               [e["type_hash"] for e in reply["subscriptions"] if e["node_name"] == me]],
+                    "server": [[e["type_hash"] for e in request["subscriptions"] if e["node_name"] != me],
+                               [e["type_hash"] for e in reply["publishers"] if e["node_name"] != me]],
+                }
+                if all(all(found) for found in sides.values()) or time.monotonic() > deadline:
+                    return {side: [found[0] if found else None for found in both] for side, both in sides.items()}
+                time.sleep(0.05)
+        finally:
+            self.node.destroy_client(client)
 
     def now(self):
         return time.monotonic()

@@ -383,8 +383,8 @@ impl RosNode {
                 mapping,
                 &ros_name,
                 &Self::service_type::<S>(),
-                qos::with_type_hash(qos::services(), S::TYPE_HASH),
-                qos::with_type_hash(qos::services(), S::TYPE_HASH),
+                qos::with_type_hash(qos::services(), <S::Request as RosMessage>::TYPE_HASH),
+                qos::with_type_hash(qos::services(), <S::Response as RosMessage>::TYPE_HASH),
             )
             .map_err(dds_err(format!("service server {name}")))
     }
@@ -405,8 +405,8 @@ impl RosNode {
                 mapping,
                 &ros_name,
                 &Self::service_type::<S>(),
-                qos::with_type_hash(qos::services(), S::TYPE_HASH),
-                qos::with_type_hash(qos::services(), S::TYPE_HASH),
+                qos::with_type_hash(qos::services(), <S::Request as RosMessage>::TYPE_HASH),
+                qos::with_type_hash(qos::services(), <S::Response as RosMessage>::TYPE_HASH),
             )
             .map_err(dds_err(format!("service client {name}")))
     }

@@ -113,28 +113,52 @@ mod tests {
                 causal_arm_msgs::rosgraph_msgs::msg::Clock::TYPE_HASH,
             ),
             (
-                builtin::parameter_services::GET_PARAMETERS,
-                rcl_interfaces::srv::GetParameters::TYPE_HASH,
+                builtin::parameter_services::GET_PARAMETERS.0,
+                <rcl_interfaces::srv::GetParameters as RosService>::Request::TYPE_HASH,
             ),
             (
-                builtin::parameter_services::GET_PARAMETER_TYPES,
-                rcl_interfaces::srv::GetParameterTypes::TYPE_HASH,
+                builtin::parameter_services::GET_PARAMETERS.1,
+                <rcl_interfaces::srv::GetParameters as RosService>::Response::TYPE_HASH,
             ),
             (
-                builtin::parameter_services::SET_PARAMETERS,
-                rcl_interfaces::srv::SetParameters::TYPE_HASH,
+                builtin::parameter_services::GET_PARAMETER_TYPES.0,
+                <rcl_interfaces::srv::GetParameterTypes as RosService>::Request::TYPE_HASH,
             ),
             (
-                builtin::parameter_services::SET_PARAMETERS_ATOMICALLY,
-                rcl_interfaces::srv::SetParametersAtomically::TYPE_HASH,
+                builtin::parameter_services::GET_PARAMETER_TYPES.1,
+                <rcl_interfaces::srv::GetParameterTypes as RosService>::Response::TYPE_HASH,
             ),
             (
-                builtin::parameter_services::LIST_PARAMETERS,
-                rcl_interfaces::srv::ListParameters::TYPE_HASH,
+                builtin::parameter_services::SET_PARAMETERS.0,
+                <rcl_interfaces::srv::SetParameters as RosService>::Request::TYPE_HASH,
             ),
             (
-                builtin::parameter_services::DESCRIBE_PARAMETERS,
-                rcl_interfaces::srv::DescribeParameters::TYPE_HASH,
+                builtin::parameter_services::SET_PARAMETERS.1,
+                <rcl_interfaces::srv::SetParameters as RosService>::Response::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::SET_PARAMETERS_ATOMICALLY.0,
+                <rcl_interfaces::srv::SetParametersAtomically as RosService>::Request::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::SET_PARAMETERS_ATOMICALLY.1,
+                <rcl_interfaces::srv::SetParametersAtomically as RosService>::Response::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::LIST_PARAMETERS.0,
+                <rcl_interfaces::srv::ListParameters as RosService>::Request::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::LIST_PARAMETERS.1,
+                <rcl_interfaces::srv::ListParameters as RosService>::Response::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::DESCRIBE_PARAMETERS.0,
+                <rcl_interfaces::srv::DescribeParameters as RosService>::Request::TYPE_HASH,
+            ),
+            (
+                builtin::parameter_services::DESCRIBE_PARAMETERS.1,
+                <rcl_interfaces::srv::DescribeParameters as RosService>::Response::TYPE_HASH,
             ),
         ];
         for (theirs, ours) in pairs {

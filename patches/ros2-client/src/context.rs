@@ -310,6 +310,17 @@ impl Context {
     self.inner.lock().unwrap().remove_node(node_name);
   }
 
+  /// Adds (or, with `present` false, removes) a reader the node's Spinner made
+  /// itself, such as the `/clock` reader of `use_sim_time`, to the node's
+  /// entities in `ros_discovery_info`, so that `ros2 node info` lists it.
+  pub(crate) fn set_spinner_reader(&self, node_fqn: &str, reader: Gid, present: bool) {
+    self
+      .inner
+      .lock()
+      .unwrap()
+      .set_spinner_reader(node_fqn, reader, present);
+  }
+
   fn get_ros_default_publisher(&self) -> rustdds::Publisher {
     self.inner.lock().unwrap().ros_default_publisher.clone()
   }
@@ -325,6 +336,8 @@ impl Context {
 
 struct ContextInner {
   local_nodes: HashMap<String, NodeEntitiesInfo>,
+  // Readers each node's Spinner made itself: kept across the node's own updates.
+  spinner_readers: HashMap<String, Vec<Gid>>,
 
   // ROS Discovery: topic, reader and writer
   ros_discovery_topic: Topic,
@@ -380,6 +393,7 @@ impl ContextInner {
 
     Ok(ContextInner {
       local_nodes: HashMap::new(),
+      spinner_readers: HashMap::new(),
       node_writer,
 
       domain_participant,
@@ -403,6 +417,10 @@ impl ContextInner {
   fn update_node(&mut self, mut node_info: NodeEntitiesInfo) {
     // Each node connects also to the ROS discovery topic
     node_info.add_writer(Gid::from(self.node_writer.guid()));
+    let fqn = node_info.fully_qualified_name();
+    for reader in self.spinner_readers.get(&fqn).into_iter().flatten() {
+      node_info.add_reader(*reader);
+    }
 
     self
       .local_nodes
@@ -413,7 +431,24 @@ impl ContextInner {
   /// Removes NodeEntitiesInfo and updates our ContextInfo to ROS2 network
   fn remove_node(&mut self, node_fqn: &str) {
     self.local_nodes.remove(node_fqn);
+    self.spinner_readers.remove(node_fqn);
     self.broadcast_node_infos();
+  }
+
+  fn set_spinner_reader(&mut self, node_fqn: &str, reader: Gid, present: bool) {
+    let readers = self.spinner_readers.entry(node_fqn.to_string()).or_default();
+    readers.retain(|r| *r != reader);
+    if present {
+      readers.push(reader);
+    }
+    if let Some(info) = self.local_nodes.get_mut(node_fqn) {
+      if present {
+        info.add_reader(reader);
+      } else {
+        info.remove_reader(reader);
+      }
+      self.broadcast_node_infos();
+    }
   }
 
   fn broadcast_node_infos(&self) {
@@ -448,4 +483,44 @@ fn test_node_create() {
       NodeOptions::new().declare_parameter("foo", ParameterValue::Boolean(true)),
     )
     .is_ok();
+}
+
+// A reader the Spinner makes itself (the `/clock` reader of `use_sim_time`) is
+// listed with its node in `ros_discovery_info`, stays listed when the node
+// updates its own entities, and goes when removed.
+#[test]
+fn a_spinner_reader_is_listed_with_its_node() {
+  use rustdds::GUID;
+
+  let context = Context::new().unwrap();
+  let mut node = context
+    .new_node(NodeName::new("/", "spun").unwrap(), NodeOptions::new())
+    .unwrap();
+  let reader = Gid::from(GUID::new_participant_guid()); // any GUID not the node's
+  let listed = |c: &Context| {
+    let info = c.inner.lock().unwrap().participant_entities_info();
+    let node = info
+      .node_entities_info_seq
+      .iter()
+      .find(|n| n.fully_qualified_name() == "/spun")
+      .expect("the node is listed")
+      .clone();
+    node.reader_gid_seq.contains(&reader)
+  };
+  assert!(!listed(&context));
+  context.set_spinner_reader("/spun", reader, true);
+  assert!(listed(&context));
+  let topic = node
+    .create_topic(
+      &Name::new("/", "spun_topic").unwrap(),
+      MessageTypeName::new("std_msgs", "String"),
+      &DEFAULT_SUBSCRIPTION_QOS,
+    )
+    .unwrap();
+  let _subscription = node
+    .create_subscription::<String>(&topic, None)
+    .unwrap();
+  assert!(listed(&context), "kept when the node updates its own entities");
+  context.set_spinner_reader("/spun", reader, false);
+  assert!(!listed(&context));
 }

@@ -58,7 +58,7 @@ impl ParticipantEntitiesInfo {
 #[serde(try_from = "repr::NodeEntitiesInfo", into = "repr::NodeEntitiesInfo")]
 pub struct NodeEntitiesInfo {
   name: NodeName,
-  reader_gid_seq: Vec<Gid>,
+  pub(crate) reader_gid_seq: Vec<Gid>,
   writer_gid_seq: Vec<Gid>,
 }
 
@@ -94,6 +94,10 @@ impl NodeEntitiesInfo {
     if !self.reader_gid_seq.contains(&gid) {
       self.reader_gid_seq.push(gid);
     }
+  }
+
+  pub fn remove_reader(&mut self, gid: Gid) {
+    self.reader_gid_seq.retain(|g| *g != gid);
   }
 }
 

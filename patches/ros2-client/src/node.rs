@@ -204,15 +204,24 @@ impl Spinner {
       // Follows `use_sim_time` as it is set: by the parameter services handled in
       // this loop, or by `Node::set_parameter`, which wakes the loop.
       if self.parameters.use_sim_time() != ros_clock_reader.is_some() {
-        ros_clock_reader = if self.parameters.use_sim_time() {
-          Some(
-            self
-              .ros_context
-              .create_subscription(&self.clock_topic, Some(QosProfile::subscription_default()))?,
-          )
-        } else {
-          None
-        };
+        if let Some(reader) = ros_clock_reader.take() {
+          self.ros_context.set_spinner_reader(
+            &self.fully_qualified_node_name,
+            Gid::from(reader.guid()),
+            false,
+          );
+        }
+        if self.parameters.use_sim_time() {
+          let reader: Subscription<builtin_interfaces::Time> = self
+            .ros_context
+            .create_subscription(&self.clock_topic, Some(QosProfile::subscription_default()))?;
+          self.ros_context.set_spinner_reader(
+            &self.fully_qualified_node_name,
+            Gid::from(reader.guid()),
+            true,
+          );
+          ros_clock_reader = Some(reader);
+        }
       }
       let next_clock = async {
         match &ros_clock_reader {
@@ -695,43 +704,43 @@ impl Node {
         service_mapping,
         &Name::new(&node_name, "get_parameters").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "GetParameters"),
-        param_qos(parameter_services::GET_PARAMETERS),
-        param_qos(parameter_services::GET_PARAMETERS),
+        param_qos(parameter_services::GET_PARAMETERS.0),
+        param_qos(parameter_services::GET_PARAMETERS.1),
       )?;
       let get_parameter_types_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "get_parameter_types").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "GetParameterTypes"),
-        param_qos(parameter_services::GET_PARAMETER_TYPES),
-        param_qos(parameter_services::GET_PARAMETER_TYPES),
+        param_qos(parameter_services::GET_PARAMETER_TYPES.0),
+        param_qos(parameter_services::GET_PARAMETER_TYPES.1),
       )?;
       let set_parameters_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "set_parameters").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "SetParameters"),
-        param_qos(parameter_services::SET_PARAMETERS),
-        param_qos(parameter_services::SET_PARAMETERS),
+        param_qos(parameter_services::SET_PARAMETERS.0),
+        param_qos(parameter_services::SET_PARAMETERS.1),
       )?;
       let set_parameters_atomically_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "set_parameters_atomically").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "SetParametersAtomically"),
-        param_qos(parameter_services::SET_PARAMETERS_ATOMICALLY),
-        param_qos(parameter_services::SET_PARAMETERS_ATOMICALLY),
+        param_qos(parameter_services::SET_PARAMETERS_ATOMICALLY.0),
+        param_qos(parameter_services::SET_PARAMETERS_ATOMICALLY.1),
       )?;
       let list_parameters_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "list_parameters").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "ListParameters"),
-        param_qos(parameter_services::LIST_PARAMETERS),
-        param_qos(parameter_services::LIST_PARAMETERS),
+        param_qos(parameter_services::LIST_PARAMETERS.0),
+        param_qos(parameter_services::LIST_PARAMETERS.1),
       )?;
       let describe_parameters_server = self.create_server(
         service_mapping,
         &Name::new(&node_name, "describe_parameters").unwrap(),
         &ServiceTypeName::new("rcl_interfaces", "DescribeParameters"),
-        param_qos(parameter_services::DESCRIBE_PARAMETERS),
-        param_qos(parameter_services::DESCRIBE_PARAMETERS),
+        param_qos(parameter_services::DESCRIBE_PARAMETERS.0),
+        param_qos(parameter_services::DESCRIBE_PARAMETERS.1),
       )?;
 
       Some(ParameterServers {

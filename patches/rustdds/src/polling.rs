@@ -285,6 +285,10 @@ impl Doorbell {
 /// In-loop deadlines. Not registered with `Poll`. `set_timeout` / `poll` keep
 /// the call pattern readers, writers, and tests already use. Deadlines are
 /// absolute `Instant`s, so there is no timer-wheel tick to round them up.
+/// A pending timeout of a `Timer`, to move it (`Timer::move_timeout`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct TimerKey(Instant, u64);
+
 pub(crate) struct Timer<E> {
   next_id: u64,
   deadlines: BTreeMap<(Instant, u64), E>,
@@ -299,12 +303,28 @@ impl<E> Timer<E> {
   }
 
   pub(crate) fn set_timeout(&mut self, delay: Duration, event: E) {
+    self.set_timeout_keyed(delay, event);
+  }
+
+  /// `set_timeout`, returning the key that `move_timeout` takes.
+  pub(crate) fn set_timeout_keyed(&mut self, delay: Duration, event: E) -> TimerKey {
     let when = Instant::now()
       .checked_add(delay)
       .unwrap_or_else(Instant::now);
     let id = self.next_id;
     self.next_id = self.next_id.wrapping_add(1);
     self.deadlines.insert((when, id), event);
+    TimerKey(when, id)
+  }
+
+  /// Moves a pending timeout to `delay` from now, or sets it anew if it has
+  /// fired or was never set: a deadline that keeps being pushed back costs no
+  /// wake-up until it is left to expire.
+  pub(crate) fn move_timeout(&mut self, key: Option<TimerKey>, delay: Duration, event: E) -> TimerKey {
+    if let Some(TimerKey(when, id)) = key {
+      self.deadlines.remove(&(when, id));
+    }
+    self.set_timeout_keyed(delay, event)
   }
 
   /// The earliest event whose deadline has passed, if any.
@@ -341,5 +361,25 @@ pub(crate) fn timeout_until(deadline: Option<Instant>, cap: Duration) -> Duratio
       }
     }
     None => cap,
+  }
+}
+
+#[cfg(test)]
+mod timer_tests {
+  use super::*;
+
+  #[test]
+  fn a_moved_timeout_fires_once_at_its_new_deadline() {
+    let mut timer = Timer::new();
+    let key = timer.set_timeout_keyed(Duration::from_millis(1), "first");
+    let moved = timer.move_timeout(Some(key), Duration::from_millis(40), "moved");
+    std::thread::sleep(Duration::from_millis(10));
+    assert_eq!(timer.poll(), None, "the first deadline is gone");
+    std::thread::sleep(Duration::from_millis(40));
+    assert_eq!(timer.poll(), Some("moved"));
+    assert_eq!(timer.poll(), None, "once");
+    // A key that has fired sets a new timeout.
+    timer.move_timeout(Some(moved), Duration::ZERO, "again");
+    assert_eq!(timer.poll(), Some("again"));
   }
 }

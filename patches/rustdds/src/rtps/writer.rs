@@ -25,7 +25,7 @@ use crate::{
   },
   messages::submessages::submessages::AckSubmessage,
   network::{udp_sender::UDPSender, util::IfAddr},
-  polling::SharedTimer,
+  polling::{SharedTimer, TimerKey},
   rtps::{
     constant::{
       DEFAULT_WRITER_MAX_SAMPLES, FALLBACK_MAX_AGGREGATED_DATAGRAM_SIZE, FRAGMENT_SIZE,
@@ -35,6 +35,7 @@ use crate::{
     },
     outbound::{SocketId, TrafficClass},
     rtps_reader_proxy::RtpsReaderProxy,
+    tail_probe::{ProbeAction, TailProbe},
     timed_event::DpTimerEvent,
     transmit::{DefaultRouteSelector, InterfaceObservations, RouteKey},
     writer_send_buffer::WriterSendBuffer,
@@ -131,6 +132,8 @@ pub(crate) enum TimedEvent {
   SendRepairFrags { to_reader: GUID },
   /// Continue a fragmented sample whose burst was paced.
   ResumePacedSend,
+  /// The Writer may have gone quiet with a lost last sample (see `tail_probe`).
+  TailProbe,
 }
 
 // This is used to construct an actual Writer.
@@ -154,6 +157,11 @@ pub(crate) struct Writer {
   /// Samples pushed since a piggybacked HEARTBEAT last asked for an ACKNACK
   /// (see `push_heartbeat`).
   pushes_since_ack_request: usize,
+  /// Asks for an ACKNACK soon after the Writer goes quiet with samples not yet
+  /// acknowledged, so a lost last sample is repaired within a few round trips.
+  tail_probe: TailProbe,
+  /// The pending TailProbe timeout, moved on by every write.
+  tail_probe_timer: Option<TimerKey>,
   /// Configures the mode in which the
   /// Writer operates. If
   /// pushMode==true, then the Writer
@@ -368,12 +376,20 @@ impl Writer {
       endianness: Endianness::LittleEndian,
       heartbeat_message_counter: atomic::AtomicI32::new(1),
       pushes_since_ack_request: 0,
+      tail_probe: TailProbe::new(std::time::Duration::from(
+        heartbeat_period_fast.unwrap_or(HEARTBEAT_PERIOD_FAST),
+      )),
+      tail_probe_timer: None,
       push_mode: true,
       push_only_to_acked_readers,
       heartbeat_period,
       heartbeat_period_fast,
       cache_cleaning_period,
-      nack_response_delay: NACK_RESPONSE_DELAY, // default value from dp_event_loop
+      // A NACK is answered at once: in a request-reply or lock-step exchange the
+      // peer waits for the repaired sample, and 5 ms per loss cut a 5 %-loss
+      // lock-step's rate in half (tests/bench/packet_loss.py). ACKNACKs that
+      // arrive while a round is pending are still served by it.
+      nack_response_delay: std::time::Duration::ZERO,
       nackfrag_response_delay: NACK_RESPONSE_DELAY, // default value from dp_event_loop
       nack_suppression_duration: NACK_SUPPRESSION_DURATION,
       // Conservative fallback for any discovery advertisement of max sample size.
@@ -594,6 +610,7 @@ impl Writer {
         self.paced = false;
         self.process_pending();
       }
+      TimedEvent::TailProbe => self.handle_tail_probe(),
     } // match
   } // fn
 
@@ -875,6 +892,8 @@ impl Writer {
     self.pushes_since_ack_request += samples;
     if self.pushes_since_ack_request >= ACK_REQUEST_EVERY_PUSHES {
       self.pushes_since_ack_request = 0;
+      let last = self.send_buffer.last_change_sequence_number();
+      self.tail_probe.on_ack_request(std::time::Instant::now(), last);
       Piggyback::RequestAck
     } else {
       Piggyback::Final
@@ -888,7 +907,12 @@ impl Writer {
   }
 
   pub fn process_pending(&mut self) {
+    let sent_before = self.last_sent;
     self.push_unsent();
+    if self.last_sent > sent_before && self.is_reliable() && !self.like_stateless {
+      let after = self.tail_probe.on_write();
+      self.set_tail_probe_timer(after);
+    }
     // An application waits for acknowledgements: once everything is on the
     // wire, ask for them now (a blocked or paced send keeps the request for the
     // next wake-up; the periodic HEARTBEAT asks in any case).
@@ -1224,6 +1248,39 @@ impl Writer {
   // --------------------------------------------------------------
   // --------------------------------------------------------------
 
+  /// The tail-loss probe timer fired: ask readers that are behind for an
+  /// ACKNACK if the Writer has been quiet for the probe timeout.
+  fn handle_tail_probe(&mut self) {
+    self.tail_probe_timer = None; // it just fired
+    let last_change = self.send_buffer.last_change_sequence_number();
+    if last_change > self.last_sent {
+      // Samples written meanwhile wait to be pushed (the event loop runs timers
+      // before doorbells): their push carries a HEARTBEAT and moves the timer.
+      return;
+    }
+    let behind = self
+      .readers
+      .values()
+      .any(|rp| last_change >= rp.all_acked_before);
+    if let ProbeAction::Probe { next } = self.tail_probe.on_fire(behind) {
+      self.handle_heartbeat_tick(false);
+      self.set_tail_probe_timer(next);
+    }
+  }
+
+  /// Sets the TailProbe timeout `after` from now, moving a pending one.
+  fn set_tail_probe_timer(&mut self, after: std::time::Duration) {
+    let event = DpTimerEvent::Writer {
+      entity_id: self.my_guid.entity_id,
+      event: TimedEvent::TailProbe,
+    };
+    let key = self
+      .timed_event_timer
+      .borrow_mut()
+      .move_timeout(self.tail_probe_timer, after, event);
+    self.tail_probe_timer = Some(key);
+  }
+
   /// This is called periodically.
   ///
   /// Returns `true` if some matched reader still has unacknowledged data (i.e.
@@ -1261,6 +1318,9 @@ impl Writer {
       trace!("heartbeat tick: all readers have all available data.");
       false
     } else {
+      self
+        .tail_probe
+        .on_ack_request(std::time::Instant::now(), last_change);
       // the interface to .heartbeat_msg is silly: we give ref to ourself
       // and that function then queries us.
       let hb_message = MessageBuilder::new()
@@ -1362,6 +1422,7 @@ impl Writer {
         let my_topic = self.my_topic_name.clone(); // for debugging
 
         let mut start_repair = false;
+        let mut acked_before = None;
 
         if let Some(reader_proxy) = self.lookup_reader_proxy_mut(reader_guid) {
           if reader_proxy.last_acknack_count == Some(an.count) {
@@ -1379,6 +1440,7 @@ impl Writer {
 
           //TODO: We should drop SNs in "pending gap" from unsent changes
           reader_proxy.handle_ack_nack(ack_submessage, last_seq);
+          acked_before = Some(reader_proxy.all_acked_before);
 
           // Sanity Check: if the reader asked for something we did not even advertise
           // yet. TODO: This
@@ -1423,13 +1485,24 @@ impl Writer {
             start_repair = true;
           }
         } // if have reader_proxy
+        if let Some(acked_before) = acked_before {
+          self
+            .tail_probe
+            .on_ack(std::time::Instant::now(), acked_before);
+        }
 
         // Every Writer, built-in or user, answers after nack_response_delay
         // (RTPS v2.5 Section 8.4.7.1.1), so that ACKNACKs arriving close
         // together are served by one repair round. If a round is already
         // pending, it also serves what this ACKNACK requested.
+        // A probe's answer is served at once: the peer is waiting for the tail.
         if start_repair {
-          self.schedule_repair_data(reader_guid, self.nack_response_delay);
+          let delay = if self.tail_probe.probing() {
+            std::time::Duration::ZERO
+          } else {
+            self.nack_response_delay
+          };
+          self.schedule_repair_data(reader_guid, delay);
         }
 
         // See if we need to respond by GAP message
@@ -3195,7 +3268,10 @@ mod tests {
               let to_reader = match event {
                 TimedEvent::SendRepairData { to_reader }
                 | TimedEvent::SendRepairFrags { to_reader } => Some(to_reader),
-                TimedEvent::Heartbeat | TimedEvent::CacheCleaning | TimedEvent::ResumePacedSend => None,
+                TimedEvent::Heartbeat
+                | TimedEvent::CacheCleaning
+                | TimedEvent::ResumePacedSend
+                | TimedEvent::TailProbe => None,
               };
               if to_reader == Some(self.reader_guid) {
                 found.push(event);
@@ -3259,6 +3335,67 @@ mod tests {
         assert_eq!(f.repair_round(), 5);
         assert!(!f.reader_proxy().repair_mode);
       }
+    }
+
+    // The first TailProbe timeout that expires within `max_wait`; other
+    // timeouts are skipped.
+    fn next_tail_probe(f: &Fixture, max_wait: StdDuration) -> Option<TimedEvent> {
+      let give_up = Instant::now() + max_wait;
+      loop {
+        while let Some(fired) = f.timer.borrow_mut().poll() {
+          if let DpTimerEvent::Writer {
+            event: TimedEvent::TailProbe,
+            ..
+          } = fired
+          {
+            return Some(TimedEvent::TailProbe);
+          }
+        }
+        if Instant::now() >= give_up {
+          return None;
+        }
+        std::thread::sleep(StdDuration::from_micros(200));
+      }
+    }
+
+    // A writer that went quiet with its last sample unacknowledged asks for an
+    // ACKNACK within the probe timeout, not the heartbeat period; the answer
+    // naming the lost sample is repaired at once; once everything is
+    // acknowledged, the probe stops.
+    #[test]
+    fn a_quiet_writer_probes_for_its_unacknowledged_last_sample() {
+      use crate::rtps::tail_probe::TAIL_PROBE_INITIAL;
+
+      let mut f = Fixture::user(1, 8, None);
+      let heartbeats = |f: &Fixture| f.writer.heartbeat_message_counter.load(atomic::Ordering::Relaxed);
+      f.writer.process_pending();
+      assert_eq!(f.writer.last_sent, SequenceNumber::new(1), "sample 1 pushed");
+      let pushed = heartbeats(&f);
+      let started = Instant::now();
+      let probe = next_tail_probe(&f, StdDuration::from_millis(100)).expect("a probe timer");
+      assert!(started.elapsed() < TAIL_PROBE_INITIAL + StdDuration::from_millis(20));
+      f.writer.handle_timed_event(probe);
+      assert_eq!(heartbeats(&f), pushed + 1, "the probe asked for an ACKNACK");
+
+      f.writer.nack_response_delay = StdDuration::from_millis(500);
+      f.ack_nack(1..=1, 1);
+      assert!(
+        f.next_repair_event(StdDuration::from_millis(50)).is_some(),
+        "the probe's answer is repaired at once, not after nack_response_delay"
+      );
+
+      let all_acked = AckNack {
+        reader_id: f.reader_guid.entity_id,
+        writer_id: f.writer.my_guid.entity_id,
+        reader_sn_state: SequenceNumberSet::new_empty(SequenceNumber::new(2)),
+        count: 2,
+      };
+      f.writer
+        .handle_ack_nack(f.reader_guid.prefix, &AckSubmessage::AckNack(all_acked));
+      let probe = next_tail_probe(&f, StdDuration::from_millis(200)).expect("the backed-off timer");
+      f.writer.handle_timed_event(probe);
+      assert_eq!(heartbeats(&f), pushed + 1, "nothing to probe for");
+      assert!(next_tail_probe(&f, StdDuration::from_millis(50)).is_none(), "the timer is not set again");
     }
 
     // A round stops once REPAIR_BATCH_MAX_BYTES have gone out and the next

@@ -130,6 +130,9 @@ def model_dir(run_cli, tmp_path_factory):
     d = tmp_path_factory.mktemp("rclpy_trainer")
     bag_and_forward_model(run_cli, d, ["exp1", "--profile", "quick", "--steps", "1200", "--seed", "5"],
                           ["--epochs", "3", "--folds", "2", "--fm-hidden", "32,32"])
+    r = run_cli("train", "--bag", d / "bag", "--model", "im-mono", "--epochs", "3", "--folds", "2", "--im-hidden",
+                "32,32", "--out", d / "models", "--cache", d / "cache", timeout=300)
+    assert r.returncode == 0, r.stderr
     return d / "models"
 
 
@@ -186,8 +189,34 @@ def test_rclpy_calls_the_trainer_services_and_gets_the_numpy_answer(trainer_and_
     assert not bad["success"] and "state has 9 values, expected rows × 10 = 10" in bad["message"]
     (info,) = peer.call(service="/trainer/model_info", type="causal_arm_msgs/srv/GetModelInfo",
                         requests=[{"model": "fm"}])
-    assert info["success"] and info["models"] == ["fm"], info
+    assert info["success"] and info["models"] == ["fm", "im-mono"], info
     assert trainer.poll() is None, "the trainer must keep serving"
+
+
+def test_rclpy_gets_the_numpy_answer_of_predict_action_and_rollout(trainer_and_peer, model_dir):
+    """The inverse model ([s(t), ef(t+1)] → a(t)) and the FM chained over a rollout."""
+    import numpy as np
+    from model_numpy import numpy_predict
+
+    trainer, peer = trainer_and_peer
+    rng = np.random.default_rng(2)
+    state = np.concatenate([rng.normal(0, 0.3, (5, 7)), rng.uniform(0.2, 0.6, (5, 3))], axis=1)
+    ef_next = rng.uniform(0.2, 0.6, (5, 3))
+    (reply,) = peer.call(service="/trainer/predict_action", type="causal_arm_msgs/srv/PredictAction",
+                         requests=[{"state": state.ravel().tolist(), "next_state": ef_next.ravel().tolist(), "rows": 5}])
+    assert reply["success"] and reply["action_names"] == [f"a{i}" for i in range(7)], reply["message"]
+    expected = numpy_predict(model_dir, "im-mono", np.concatenate([state, ef_next], axis=1))
+    np.testing.assert_allclose(np.array(reply["action"]).reshape(5, 7), expected, rtol=1e-4, atol=1e-5)
+
+    actions = rng.normal(0, 0.05, (4, 7))
+    (reply,) = peer.call(service="/trainer/rollout", type="causal_arm_msgs/srv/Rollout",
+                         requests=[{"initial_state": state[0].tolist(), "actions": actions.ravel().tolist(), "steps": 4}])
+    assert reply["success"], reply["message"]
+    states, s = np.array(reply["states"]).reshape(4, 10), state[0]
+    for k in range(4):
+        s = numpy_predict(model_dir, "fm", np.concatenate([s, actions[k]])[None, :])[0]
+        np.testing.assert_allclose(states[k], s, rtol=1e-4, atol=1e-5)
+    assert trainer.poll() is None
 
 
 def test_rclpy_sees_the_type_hash_of_every_endpoint_of_the_trainer(trainer_and_peer):

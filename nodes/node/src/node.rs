@@ -367,6 +367,15 @@ impl RosNode {
         ServiceTypeName::new(package, name)
     }
 
+    /// The QoS of service `S`'s request and response topics: each announces its own
+    /// message's type hash, as rmw_fastrtps does (not the service's).
+    fn service_qos<S: RosService>() -> (QosProfile, QosProfile) {
+        (
+            qos::with_type_hash(qos::services(), <S::Request as RosMessage>::TYPE_HASH),
+            qos::with_type_hash(qos::services(), <S::Response as RosMessage>::TYPE_HASH),
+        )
+    }
+
     /// A server of service `S` at `name`, mapped as `RMW_IMPLEMENTATION` asks.
     pub fn server<S: RosService>(
         &mut self,
@@ -378,13 +387,14 @@ impl RosNode {
     {
         let ros_name = self.ros_name(name)?;
         let mapping = self.env.service_mapping;
+        let (request_qos, response_qos) = Self::service_qos::<S>();
         self.node_mut()
             .create_server(
                 mapping,
                 &ros_name,
                 &Self::service_type::<S>(),
-                qos::with_type_hash(qos::services(), <S::Request as RosMessage>::TYPE_HASH),
-                qos::with_type_hash(qos::services(), <S::Response as RosMessage>::TYPE_HASH),
+                request_qos,
+                response_qos,
             )
             .map_err(dds_err(format!("service server {name}")))
     }
@@ -400,13 +410,14 @@ impl RosNode {
     {
         let ros_name = self.ros_name(name)?;
         let mapping = self.env.service_mapping;
+        let (request_qos, response_qos) = Self::service_qos::<S>();
         self.node_mut()
             .create_client(
                 mapping,
                 &ros_name,
                 &Self::service_type::<S>(),
-                qos::with_type_hash(qos::services(), <S::Request as RosMessage>::TYPE_HASH),
-                qos::with_type_hash(qos::services(), <S::Response as RosMessage>::TYPE_HASH),
+                request_qos,
+                response_qos,
             )
             .map_err(dds_err(format!("service client {name}")))
     }

@@ -1258,14 +1258,19 @@ impl Writer {
       // before doorbells): their push carries a HEARTBEAT and moves the timer.
       return;
     }
-    let behind = self
-      .readers
-      .values()
-      .any(|rp| last_change >= rp.all_acked_before);
-    if let ProbeAction::Probe { next } = self.tail_probe.on_fire(behind) {
+    if let ProbeAction::Probe { next } = self.tail_probe.on_fire(self.some_reader_behind()) {
       self.handle_heartbeat_tick(false);
       self.set_tail_probe_timer(next);
     }
+  }
+
+  /// Whether some matched reader has not acknowledged every sample we have.
+  fn some_reader_behind(&self) -> bool {
+    let last_change = self.send_buffer.last_change_sequence_number();
+    self
+      .readers
+      .values()
+      .any(|rp| last_change >= rp.all_acked_before)
   }
 
   /// Sets the TailProbe timeout `after` from now, moving a pending one.
@@ -1310,11 +1315,7 @@ impl Writer {
     let first_change = self.send_buffer.first_change_sequence_number();
     let last_change = self.send_buffer.last_change_sequence_number();
 
-    if self
-      .readers
-      .values()
-      .all(|rp| last_change < rp.all_acked_before)
-    {
+    if !self.some_reader_behind() {
       trace!("heartbeat tick: all readers have all available data.");
       false
     } else {

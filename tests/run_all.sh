@@ -18,6 +18,9 @@ step() { printf '\n==> %s\n' "$*"; }
 step "system packages"
 bash "$ROOT/tests/system_packages.sh"
 
+step "patched crates: patches/*/ are exactly crates.io + patches/*.series (patches/rebuild.sh)"
+bash "$ROOT/patches/rebuild.sh"
+
 step "Python venv with pinned oracles ($VENV)"
 stamp=$VENV/.requirements.sha256
 want=$(sha256sum "$REQ" | cut -d' ' -f1)

@@ -21,6 +21,8 @@ const FOOTER_RECORD: u64 = FRAME + 20;
 /// One damaged place of a file.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Damage {
+    /// The file of a split bag the damage is in (`None` for a bag of one file).
+    pub file: Option<String>,
     /// Byte offset of the damaged record in the file.
     pub offset: u64,
     /// 0-based index, in file order, of the chunk the damage is in, if it is in one.
@@ -31,6 +33,9 @@ pub struct Damage {
 
 impl fmt::Display for Damage {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(file) = &self.file {
+            write!(f, "{file} ")?;
+        }
         write!(f, "byte {}", self.offset)?;
         if let Some(chunk) = self.chunk {
             write!(f, " (chunk {chunk})")?;
@@ -404,6 +409,7 @@ struct Walk {
 impl Walk {
     fn damage(&mut self, offset: u64, chunk: Option<usize>, problem: String) {
         self.scan.damage.push(Damage {
+            file: None,
             offset,
             chunk,
             problem,

@@ -5,6 +5,9 @@
 //! `ros2msg` encoding with full dependent definitions, CDR messages, zstd-compressed
 //! chunks, message and chunk indexes, summary) and `metadata.yaml` (rosbag2 format 9), as
 //! `ros2 bag record -s mcap` writes them, so `ros2 bag`, rosbags and mcap tools read it.
+//! A long recording may be split as `ros2 bag record --max-bag-size / --max-bag-duration`
+//! split it ([`SplitLimits`]): `NAME_0.mcap`, `NAME_1.mcap`, … each finished as it
+//! closes, all listed in `metadata.yaml`, and read back as one bag.
 //!
 //! Crash safety: chunks are self-contained, so a writer killed mid-run leaves a file whose
 //! complete chunks [`BagReader`] (and `mcap recover`) still read, and `metadata.yaml` is
@@ -14,16 +17,17 @@
 
 mod bounds;
 mod check;
+mod files;
 mod metadata;
 mod reader;
 mod shards;
 mod writer;
 
 pub use check::Damage;
-pub use reader::{BagReader, RawMessage, ReadPolicy, TopicInfo};
+pub use reader::{BagFile, BagReader, RawMessage, ReadPolicy, TopicInfo};
 pub use shards::{SHARD_SET_FILE, ShardSet, bags_in};
 pub use writer::{
-    BAG_METADATA_NAME, BagOptions, BagSummary, BagWriter, Compression, existing_bag,
+    BAG_METADATA_NAME, BagOptions, BagSummary, BagWriter, Compression, SplitLimits, existing_bag,
     offered_qos_yaml,
 };
 

@@ -22,6 +22,15 @@ struct Information {
     relative_file_paths: Vec<String>,
     #[serde(default)]
     topics_with_message_count: Vec<TopicCount>,
+    #[serde(default)]
+    files: Vec<FileCount>,
+}
+
+#[derive(Deserialize)]
+struct FileCount {
+    path: String,
+    #[serde(default)]
+    message_count: u64,
 }
 
 #[derive(Deserialize)]
@@ -35,9 +44,9 @@ struct TopicName {
     name: String,
 }
 
-/// Checks `dir/metadata.yaml` against what `reader` found in the MCAP file: it must exist,
-/// parse, name the file, and count no more messages per topic than the file holds (a
-/// writer keeps it current as chunks land, so fewer only means a crash after the last
+/// Checks `dir/metadata.yaml` against what `reader` found in the MCAP files: it must
+/// exist, parse, list the files, and count no more messages per topic than the files hold
+/// (a writer keeps it current as chunks land, so fewer only means a crash after the last
 /// update).
 pub(crate) fn check(dir: &Path, reader: &BagReader) -> Result<(), BagError> {
     let path = dir.join("metadata.yaml");
@@ -64,16 +73,9 @@ pub(crate) fn check(dir: &Path, reader: &BagReader) -> Result<(), BagError> {
     let index: Index =
         serde_norway::from_str(&text).map_err(|e| problem(format!("not a rosbag2 index: {e}")))?;
     let info = index.rosbag2_bagfile_information;
-    let file = reader
-        .path()
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    if !info.relative_file_paths.is_empty() && !info.relative_file_paths.contains(&file) {
-        return Err(problem(format!(
-            "lists files {:?}, not {file}",
-            info.relative_file_paths
-        )));
+    check_files(&info.relative_file_paths, reader).map_err(problem)?;
+    if reader.files().len() > 1 {
+        check_file_counts(&info.files, reader).map_err(problem)?;
     }
     let held: BTreeMap<String, u64> = reader
         .topics()
@@ -96,6 +98,50 @@ pub(crate) fn check(dir: &Path, reader: &BagReader) -> Result<(), BagError> {
             info.message_count,
             reader.message_count()
         )));
+    }
+    Ok(())
+}
+
+/// The files `metadata.yaml` lists must be the bag's: none missing (a lost split would be
+/// read as a smaller bag), none unlisted but a last one without messages (a writer killed
+/// between opening a split and listing it). An index that lists none (old formats) is
+/// not checked.
+fn check_files(listed: &[String], reader: &BagReader) -> Result<(), String> {
+    if listed.is_empty() {
+        return Ok(());
+    }
+    let files = reader.files();
+    let found: Vec<String> = files
+        .iter()
+        .map(|f| crate::files::file_name(&f.path))
+        .collect();
+    if let Some(missing) = listed.iter().find(|l| !found.contains(l)) {
+        return Err(format!(
+            "lists {missing}, which is missing from the bag (it holds {found:?}): a split was lost"
+        ));
+    }
+    for (i, (name, file)) in found.iter().zip(&files).enumerate() {
+        let fresh_last = i + 1 == files.len() && file.message_count == 0;
+        if !listed.contains(name) && !fresh_last {
+            return Err(format!("lists files {listed:?}, not {name}"));
+        }
+    }
+    Ok(())
+}
+
+/// Each file holds at least what the index counts in it, so the split of a split bag cut
+/// short after it was indexed is named.
+fn check_file_counts(counted: &[FileCount], reader: &BagReader) -> Result<(), String> {
+    for file in reader.files() {
+        let name = crate::files::file_name(&file.path);
+        if let Some(c) = counted.iter().find(|c| c.path == name)
+            && c.message_count > file.message_count
+        {
+            return Err(format!(
+                "counts {} messages in {name}, which holds {}",
+                c.message_count, file.message_count
+            ));
+        }
     }
     Ok(())
 }

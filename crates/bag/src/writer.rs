@@ -35,6 +35,40 @@ pub struct BagOptions {
     /// `custom_data` and as an MCAP metadata record named [`BAG_METADATA_NAME`] at the
     /// start of the file, so even a bag cut short by a crash says what it holds.
     pub custom_data: BTreeMap<String, String>,
+    /// When to start the bag's next file (never, by default).
+    pub split: SplitLimits,
+}
+
+/// When a bag starts its next file, as `ros2 bag record --max-bag-size / --max-bag-duration`
+/// do: long recordings in files of bounded size, each finished as it closes, so a crash
+/// costs at most the open one's unlanded tail and every closed file opens on its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SplitLimits {
+    /// Start a new file before the next message once the open one holds this many bytes
+    /// (files grow by whole chunks, so they end one chunk past it at most).
+    pub max_bytes: Option<u64>,
+    /// Start a new file before a message logged more than this long after the open
+    /// file's first message.
+    pub max_duration_ns: Option<u64>,
+}
+
+impl SplitLimits {
+    /// Limits from rosbag2's command-line units (bytes, whole seconds; 0 = no limit).
+    pub fn from_ros2_units(max_bag_size: u64, max_bag_duration_s: u64) -> Self {
+        Self {
+            max_bytes: (max_bag_size > 0).then_some(max_bag_size),
+            max_duration_ns: (max_bag_duration_s > 0)
+                .then(|| max_bag_duration_s.saturating_mul(1_000_000_000)),
+        }
+    }
+
+    /// The limits in rosbag2's command-line units: (bytes, whole seconds), 0 = no limit.
+    pub fn to_ros2_units(&self) -> (u64, u64) {
+        (
+            self.max_bytes.unwrap_or(0),
+            self.max_duration_ns.map_or(0, |ns| ns / 1_000_000_000),
+        )
+    }
 }
 
 /// Name of the MCAP metadata record carrying [`BagOptions::custom_data`].
@@ -47,6 +81,7 @@ impl Default for BagOptions {
             chunk_size: 786_432,
             overwrite: false,
             custom_data: BTreeMap::new(),
+            split: SplitLimits::default(),
         }
     }
 }
@@ -75,6 +110,7 @@ pub fn offered_qos_yaml(
 struct TopicEntry {
     channel_id: u16,
     ros_type: &'static str,
+    definition: &'static str,
     type_hash: &'static str,
     qos_yaml: String,
     count: u64,
@@ -86,8 +122,10 @@ struct TopicEntry {
 pub struct BagSummary {
     /// Bag directory.
     pub dir: PathBuf,
-    /// The MCAP file.
+    /// The (first) MCAP file.
     pub mcap_path: PathBuf,
+    /// Every MCAP file, in order (one unless the bag was split).
+    pub files: Vec<PathBuf>,
     /// Messages written.
     pub message_count: u64,
     /// Messages per topic.
@@ -99,7 +137,14 @@ pub struct BagSummary {
 /// Writes one bag; finish it with [`BagWriter::finish`] (dropping it finishes it too).
 pub struct BagWriter {
     dir: PathBuf,
+    /// The open MCAP file.
     mcap_path: PathBuf,
+    compression: Option<mcap::Compression>,
+    split: SplitLimits,
+    /// What each file holds, the open one last.
+    files: Vec<FileStats>,
+    /// Bytes of the open file handed to the OS (kept only when splitting by size).
+    file_bytes: u64,
     writer: Option<mcap::Writer<BufWriter<File>>>,
     topics: BTreeMap<String, TopicEntry>,
     first_ns: Option<u64>,
@@ -112,6 +157,68 @@ pub struct BagWriter {
     chunk_bytes: u64,
     /// Messages written so far that lie in closed chunks (handed to the OS).
     landed: u64,
+}
+
+/// What one file of the bag holds, for `metadata.yaml`'s `files` list.
+struct FileStats {
+    name: String,
+    first_ns: Option<u64>,
+    last_ns: u64,
+    count: u64,
+}
+
+impl FileStats {
+    fn new(name: String) -> Self {
+        Self {
+            name,
+            first_ns: None,
+            last_ns: 0,
+            count: 0,
+        }
+    }
+
+    fn add(&mut self, log_time_ns: u64) {
+        self.count += 1;
+        self.first_ns = Some(self.first_ns.map_or(log_time_ns, |f| f.min(log_time_ns)));
+        self.last_ns = self.last_ns.max(log_time_ns);
+    }
+
+    fn duration_ns(&self) -> u64 {
+        self.last_ns.saturating_sub(self.first_ns.unwrap_or(0))
+    }
+}
+
+/// Starts an MCAP file of profile `ros2` at `path`, with the bag's custom data first.
+fn open_mcap(
+    path: &Path,
+    compression: Option<mcap::Compression>,
+    custom_data: &BTreeMap<String, String>,
+) -> Result<mcap::Writer<BufWriter<File>>, BagError> {
+    let file = File::create(path).map_err(io(path, "creating"))?;
+    let mut writer = mcap::WriteOptions::new()
+        .profile("ros2")
+        .library(concat!("causal-arm ", env!("CARGO_PKG_VERSION")))
+        .compression(compression)
+        .chunk_size(None)
+        .create(BufWriter::with_capacity(1 << 20, file))
+        .map_err(|e| mcap_error(path, e))?;
+    if !custom_data.is_empty() {
+        writer
+            .write_metadata(&mcap::records::Metadata {
+                name: BAG_METADATA_NAME.to_owned(),
+                metadata: custom_data.clone(),
+            })
+            .map_err(|e| mcap_error(path, e))?;
+    }
+    Ok(writer)
+}
+
+/// The channel metadata rosbag2 stores per topic.
+fn channel_metadata(qos_yaml: &str, type_hash: &str) -> BTreeMap<String, String> {
+    BTreeMap::from([
+        ("offered_qos_profiles".to_owned(), qos_yaml.to_owned()),
+        ("topic_type_hash".to_owned(), type_hash.to_owned()),
+    ])
 }
 
 /// Bytes of a message record besides its data (framing and header).
@@ -151,7 +258,8 @@ pub fn existing_bag(dir: &Path) -> Option<String> {
 }
 
 impl BagWriter {
-    /// Creates `dir` (or reuses an empty one) and starts `<dir name>_0.mcap` in it.
+    /// Creates `dir` (or reuses an empty one) and starts `<dir name>_0.mcap` in it (then
+    /// `<dir name>_1.mcap` … as [`BagOptions::split`] asks).
     pub fn create(dir: &Path, options: BagOptions) -> Result<Self, BagError> {
         if let Some(found) = existing_bag(dir) {
             if !options.overwrite {
@@ -172,36 +280,21 @@ impl BagWriter {
             }
         }
         std::fs::create_dir_all(dir).map_err(io(dir, "creating the bag directory"))?;
-        let name = dir
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .filter(|n| !n.is_empty() && n != "." && n != "..")
-            .unwrap_or_else(|| "bag".to_owned());
-        let mcap_path = dir.join(format!("{name}_0.mcap"));
-        let file = File::create(&mcap_path).map_err(io(&mcap_path, "creating"))?;
+        let name = crate::files::split_file_name(dir, 0);
+        let mcap_path = dir.join(&name);
         let compression = match options.compression {
             Compression::Zstd => Some(mcap::Compression::Zstd),
             Compression::Lz4 => Some(mcap::Compression::Lz4),
             Compression::None => None,
         };
-        let mut writer = mcap::WriteOptions::new()
-            .profile("ros2")
-            .library(concat!("causal-arm ", env!("CARGO_PKG_VERSION")))
-            .compression(compression)
-            .chunk_size(None)
-            .create(BufWriter::with_capacity(1 << 20, file))
-            .map_err(|e| mcap_error(&mcap_path, e))?;
-        if !options.custom_data.is_empty() {
-            writer
-                .write_metadata(&mcap::records::Metadata {
-                    name: BAG_METADATA_NAME.to_owned(),
-                    metadata: options.custom_data.clone(),
-                })
-                .map_err(|e| mcap_error(&mcap_path, e))?;
-        }
+        let writer = open_mcap(&mcap_path, compression, &options.custom_data)?;
         let bag = Self {
             dir: dir.to_owned(),
             mcap_path,
+            compression,
+            split: options.split,
+            files: vec![FileStats::new(name)],
+            file_bytes: 0,
             custom_data: options.custom_data,
             writer: Some(writer),
             topics: BTreeMap::new(),
@@ -244,13 +337,7 @@ impl BagWriter {
         let schema = writer
             .add_schema(M::ROS_TYPE, "ros2msg", M::definition().as_bytes())
             .map_err(|e| mcap_error(&self.mcap_path, e))?;
-        let metadata = BTreeMap::from([
-            (
-                "offered_qos_profiles".to_owned(),
-                offered_qos_yaml.to_owned(),
-            ),
-            ("topic_type_hash".to_owned(), M::TYPE_HASH.to_owned()),
-        ]);
+        let metadata = channel_metadata(offered_qos_yaml, M::TYPE_HASH);
         let channel_id = writer
             .add_channel(schema, topic, "cdr", &metadata)
             .map_err(|e| mcap_error(&self.mcap_path, e))?;
@@ -259,6 +346,7 @@ impl BagWriter {
             TopicEntry {
                 channel_id,
                 ros_type: M::ROS_TYPE,
+                definition: M::definition(),
                 type_hash: M::TYPE_HASH,
                 qos_yaml: offered_qos_yaml.to_owned(),
                 count: 0,
@@ -300,13 +388,17 @@ impl BagWriter {
         publish_time_ns: u64,
         cdr: &[u8],
     ) -> Result<(), BagError> {
-        let Some(entry) = self.topics.get_mut(topic) else {
+        if !self.topics.contains_key(topic) {
             return Err(BagError::Topic {
                 path: self.mcap_path.clone(),
                 topic: topic.to_owned(),
                 problem: "written before add_topic".to_owned(),
             });
-        };
+        }
+        if self.file_is_full(log_time_ns) {
+            self.start_next_file()?;
+        }
+        let entry = self.topics.get_mut(topic).expect("checked above");
         let header = mcap::records::MessageHeader {
             channel_id: entry.channel_id,
             sequence: entry.sequence,
@@ -317,6 +409,7 @@ impl BagWriter {
         entry.count += 1;
         self.first_ns = Some(self.first_ns.map_or(log_time_ns, |f| f.min(log_time_ns)));
         self.last_ns = self.last_ns.max(log_time_ns);
+        self.open_file().add(log_time_ns);
         let result = self
             .writer
             .as_mut()
@@ -360,14 +453,86 @@ impl BagWriter {
             .expect("writer lives until finish")
             .flush();
         result.map_err(|e| self.mcap_err(e))?;
+        if self.split.max_bytes.is_some() {
+            let len = std::fs::metadata(&self.mcap_path)
+                .map_err(io(&self.mcap_path, "reading the size of"))?
+                .len();
+            self.file_bytes = len;
+        }
         self.write_metadata(&self.summary())
+    }
+
+    fn open_file(&mut self) -> &mut FileStats {
+        self.files
+            .last_mut()
+            .expect("a bag has a file from the start")
+    }
+
+    /// Whether the next message, logged at `log_time_ns`, belongs in a new file, as
+    /// rosbag2 decides it: the open file holds something and has reached the size
+    /// limit, or the message lies past the duration limit from the file's first.
+    fn file_is_full(&self, log_time_ns: u64) -> bool {
+        let file = &self.files[self.files.len() - 1];
+        let Some(first) = file.first_ns else {
+            return false;
+        };
+        let too_big = self.split.max_bytes.is_some_and(|m| self.file_bytes >= m);
+        let too_long = self
+            .split
+            .max_duration_ns
+            .is_some_and(|d| log_time_ns.saturating_sub(first) > d);
+        too_big || too_long
+    }
+
+    /// Finishes the open file (summary, footer, synced: it opens on its own from now on)
+    /// and starts the next, with the same schemas and channels under the same ids.
+    fn start_next_file(&mut self) -> Result<(), BagError> {
+        self.finish_open_file()?;
+        self.landed = self.total_messages();
+        let name = crate::files::split_file_name(&self.dir, self.files.len());
+        self.mcap_path = self.dir.join(&name);
+        let mut writer = open_mcap(&self.mcap_path, self.compression, &self.custom_data)?;
+        let mut entries: Vec<_> = self.topics.iter_mut().collect();
+        entries.sort_by_key(|(_, e)| e.channel_id);
+        for (topic, entry) in entries {
+            let path = &self.mcap_path;
+            let schema = writer
+                .add_schema(entry.ros_type, "ros2msg", entry.definition.as_bytes())
+                .map_err(|e| mcap_error(path, e))?;
+            let metadata = channel_metadata(&entry.qos_yaml, entry.type_hash);
+            entry.channel_id = writer
+                .add_channel(schema, topic, "cdr", &metadata)
+                .map_err(|e| mcap_error(path, e))?;
+        }
+        self.writer = Some(writer);
+        self.files.push(FileStats::new(name));
+        (self.file_bytes, self.chunk_bytes) = (0, 0);
+        self.write_metadata(&self.summary())
+    }
+
+    /// Finishes the open MCAP file and hands it to the disk.
+    fn finish_open_file(&mut self) -> Result<(), BagError> {
+        let Some(mut writer) = self.writer.take() else {
+            return Err(BagError::Metadata {
+                path: self.dir.clone(),
+                problem: "bag already finished".to_owned(),
+            });
+        };
+        writer.finish().map_err(|e| self.mcap_err(e))?;
+        let mut inner = writer.into_inner();
+        inner.flush().map_err(io(&self.mcap_path, "flushing"))?;
+        inner
+            .get_ref()
+            .sync_all()
+            .map_err(io(&self.mcap_path, "syncing"))
     }
 
     /// What the bag holds so far.
     fn summary(&self) -> BagSummary {
         BagSummary {
             dir: self.dir.clone(),
-            mcap_path: self.mcap_path.clone(),
+            mcap_path: self.dir.join(&self.files[0].name),
+            files: self.files.iter().map(|f| self.dir.join(&f.name)).collect(),
             message_count: self.total_messages(),
             per_topic: self
                 .topics
@@ -389,19 +554,7 @@ impl BagWriter {
     }
 
     fn finish_in_place(&mut self) -> Result<BagSummary, BagError> {
-        let Some(mut writer) = self.writer.take() else {
-            return Err(BagError::Metadata {
-                path: self.dir.clone(),
-                problem: "bag already finished".to_owned(),
-            });
-        };
-        writer.finish().map_err(|e| self.mcap_err(e))?;
-        let mut inner = writer.into_inner();
-        inner.flush().map_err(io(&self.mcap_path, "flushing"))?;
-        inner
-            .get_ref()
-            .sync_all()
-            .map_err(io(&self.mcap_path, "syncing"))?;
+        self.finish_open_file()?;
         let summary = self.summary();
         self.write_metadata(&summary)?;
         Ok(summary)
@@ -409,11 +562,6 @@ impl BagWriter {
 
     fn write_metadata(&self, summary: &BagSummary) -> Result<(), BagError> {
         let start = self.first_ns.unwrap_or(0);
-        let file_name = self
-            .mcap_path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
         let topics = self
             .topics
             .iter()
@@ -445,17 +593,21 @@ impl BagWriter {
             topics_with_message_count: topics,
             compression_format: String::new(),
             compression_mode: String::new(),
-            relative_file_paths: vec![file_name.clone()],
-            files: vec![FileInformation {
-                path: file_name,
-                starting_time: NanosecondsSinceEpoch {
-                    nanoseconds_since_epoch: start,
-                },
-                duration: Nanoseconds {
-                    nanoseconds: summary.duration_ns,
-                },
-                message_count: summary.message_count,
-            }],
+            relative_file_paths: self.files.iter().map(|f| f.name.clone()).collect(),
+            files: self
+                .files
+                .iter()
+                .map(|f| FileInformation {
+                    path: f.name.clone(),
+                    starting_time: NanosecondsSinceEpoch {
+                        nanoseconds_since_epoch: f.first_ns.unwrap_or(start),
+                    },
+                    duration: Nanoseconds {
+                        nanoseconds: f.duration_ns(),
+                    },
+                    message_count: f.count,
+                })
+                .collect(),
             custom_data: self.custom_data.clone(),
             ros_distro: "jazzy".to_owned(),
         };

@@ -42,6 +42,12 @@ enum BagCommand {
         /// Replace a bag already at --out.
         #[arg(long)]
         overwrite: bool,
+        /// Split the new bag as `ros2 bag record --max-bag-size` does (bytes; 0: one file).
+        #[arg(long, value_name = "BYTES", default_value_t = 0)]
+        max_bag_size: u64,
+        /// Split the new bag as `ros2 bag record --max-bag-duration` does (s; 0: one file).
+        #[arg(long, value_name = "SECONDS", default_value_t = 0)]
+        max_bag_duration: u64,
     },
     /// Physical statistics of the data, as JSON: commanded and realized joint changes, how
     /// deep and how often the arm's links went into the table, and in exp 2 how often the
@@ -63,7 +69,13 @@ pub fn run(args: &BagArgs) -> anyhow::Result<()> {
             bag,
             out,
             overwrite,
-        } => recover(bag, out, *overwrite),
+            max_bag_size,
+            max_bag_duration,
+        } => {
+            let split =
+                causal_arm_bag::SplitLimits::from_ros2_units(*max_bag_size, *max_bag_duration);
+            recover(bag, out, *overwrite, split)
+        }
         BagCommand::Stats { bags } => stats(bags),
     }
 }
@@ -165,6 +177,7 @@ fn info(bag: &Path) -> anyhow::Result<serde_json::Value> {
     }
     let info = json!({
         "path": reader.path(),
+        "files": files_json(&reader),
         "message_count": reader.message_count(),
         "start_ns": first,
         "end_ns": last,
@@ -188,7 +201,25 @@ fn damage_json(reader: &BagReader) -> Vec<serde_json::Value> {
     reader
         .damage()
         .iter()
-        .map(|d| json!({"offset": d.offset, "chunk": d.chunk, "problem": d.problem}))
+        .map(
+            |d| json!({"file": d.file, "offset": d.offset, "chunk": d.chunk, "problem": d.problem}),
+        )
+        .collect()
+}
+
+/// Each MCAP file of the bag (several for a split bag), as `ros2 bag info` lists them.
+fn files_json(reader: &BagReader) -> Vec<serde_json::Value> {
+    reader
+        .files()
+        .iter()
+        .map(|f| {
+            json!({
+                "path": f.path,
+                "message_count": f.message_count,
+                "finished": f.finished,
+                "truncation": f.truncation,
+            })
+        })
         .collect()
 }
 
@@ -210,6 +241,7 @@ fn check_report(bag: &Path) -> (Option<serde_json::Value>, anyhow::Result<()>) {
     let sound = verdict.is_none() && reader.finished() && steps.get("error").is_none();
     let report = json!({
         "path": reader.path(),
+        "files": files_json(&reader),
         "sound": sound,
         "finished": reader.finished(),
         "chunks": reader.chunk_count(),
@@ -242,7 +274,7 @@ fn check_verdict(
     if let Some(t) = reader.truncation() {
         bail!(
             "{}: not finished ({t}); `causal-arm bag recover` writes a finished copy",
-            reader.path().display()
+            reader.last_path().display()
         );
     }
     Ok(())
@@ -262,7 +294,12 @@ impl MessageTypeVisitor for AddTopic<'_> {
     }
 }
 
-fn recover(bag: &Path, out: &Path, overwrite: bool) -> anyhow::Result<()> {
+fn recover(
+    bag: &Path,
+    out: &Path,
+    overwrite: bool,
+    split: causal_arm_bag::SplitLimits,
+) -> anyhow::Result<()> {
     let reader = BagReader::open_unchecked(bag)?;
     if reader.message_count() == 0 {
         bail!("{}: nothing intact to recover", reader.path().display());
@@ -272,6 +309,7 @@ fn recover(bag: &Path, out: &Path, overwrite: bool) -> anyhow::Result<()> {
         BagOptions {
             custom_data: reader.custom_data(),
             overwrite,
+            split,
             ..BagOptions::default()
         },
     )?;
@@ -299,6 +337,7 @@ fn recover(bag: &Path, out: &Path, overwrite: bool) -> anyhow::Result<()> {
     let report = json!({
         "from": reader.path(),
         "to": summary.mcap_path,
+        "to_files": summary.files,
         "recovered_messages": summary.message_count,
         "recovered_per_topic": summary.per_topic,
         "messages_in_damaged_chunks": reader.lost_known(),

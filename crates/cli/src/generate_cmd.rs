@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use causal_arm_datagen::{GenerateOptions, generate, generate_shards, shard_options};
-use causal_arm_protocol::graph::run_default_text;
+use causal_arm_protocol::graph::{node_default_text, run_default_text};
 use causal_arm_protocol::{Experiment, Profile, RunPlan};
 use causal_arm_sim::ArmMode;
 use clap::Args;
@@ -56,6 +56,18 @@ pub struct GenerateArgs {
     /// bag ends as an uninterrupted run of the seed would write it.
     #[arg(long)]
     pub resume: bool,
+    /// Start the bag's next file (OUT_1.mcap, …) once the open one holds this many bytes,
+    /// as `ros2 bag record --max-bag-size`; 0 writes one file. Each closed file is
+    /// finished at once; every reader takes the files as one bag.
+    #[arg(long, value_name = "BYTES",
+          default_value = node_default_text("causal_arm_recorder", "max_bag_size"))]
+    max_bag_size: u64,
+    /// Start the bag's next file before a message more than this many seconds (of the
+    /// run's clock) after the open file's first, as `ros2 bag record --max-bag-duration`;
+    /// 0 writes one file.
+    #[arg(long, value_name = "SECONDS",
+          default_value = node_default_text("causal_arm_recorder", "max_bag_duration"))]
+    max_bag_duration: u64,
     /// Standard deviation of the exp1 joint targets, rad.
     #[arg(allow_negative_numbers = true, long, default_value = run_default_text("sigma"))]
     sigma: f64,
@@ -113,6 +125,8 @@ impl GenerateArgs {
         options.sim.velocity_scale = self.velocity_scale;
         options.sim.arm = self.arm;
         options.exp2.move_while_switching = self.move_while_switching;
+        options.split =
+            causal_arm_bag::SplitLimits::from_ros2_units(self.max_bag_size, self.max_bag_duration);
         Ok(options)
     }
 }

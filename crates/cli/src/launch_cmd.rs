@@ -78,6 +78,11 @@ pub fn node_commands(options: &GenerateOptions) -> anyhow::Result<Vec<(String, V
     let node_values = [
         ("output", options.out.display().to_string()),
         ("overwrite", options.overwrite.to_string()),
+        ("max_bag_size", options.split.to_ros2_units().0.to_string()),
+        (
+            "max_bag_duration",
+            options.split.to_ros2_units().1.to_string(),
+        ),
     ];
     Ok(graph()?
         .nodes

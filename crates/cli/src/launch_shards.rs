@@ -118,6 +118,11 @@ fn shard_args(shard: &GenerateOptions, composed: bool, ros_args: &RosArgs) -> Ve
             ("--shard-index", place.index.to_string()),
             ("--shard-count", place.count.to_string()),
             ("--shard-set-seed", place.set_seed.to_string()),
+            ("--max-bag-size", shard.split.to_ros2_units().0.to_string()),
+            (
+                "--max-bag-duration",
+                shard.split.to_ros2_units().1.to_string(),
+            ),
         ]
         .into_iter()
         .flat_map(|(flag, value)| [flag.to_owned(), value]),

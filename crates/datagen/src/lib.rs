@@ -10,6 +10,8 @@
 use std::path::{Path, PathBuf};
 
 use causal_arm_babbler::{Exp1Babbler, Exp1Config, Exp2Babbler, Exp2Config};
+/// Where a run's bag starts its next file ([`GenerateOptions::split`]).
+pub use causal_arm_bag::SplitLimits;
 use causal_arm_bag::{BagError, BagOptions, BagWriter, offered_qos_yaml};
 use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::msg::Action;
@@ -49,6 +51,9 @@ pub struct GenerateOptions {
     pub exp2: Exp2Config,
     /// This run's place in a shard set (`generate --shards`), if it is a shard.
     pub shard: Option<Shard>,
+    /// When the bag starts its next file (`--max-bag-size`, `--max-bag-duration`); the
+    /// bag's content is the same however it is split.
+    pub split: SplitLimits,
 }
 
 impl GenerateOptions {
@@ -105,6 +110,7 @@ impl GenerateOptions {
             exp1: Exp1Config::default(),
             exp2: Exp2Config::default(),
             shard: None,
+            split: SplitLimits::default(),
         }
     }
 }
@@ -373,6 +379,7 @@ impl BagSink {
             BagOptions {
                 overwrite,
                 custom_data: options.bag_custom_data(),
+                split: options.split,
                 ..BagOptions::default()
             },
         )?;

@@ -250,19 +250,21 @@ fn experiment_of(reader: &BagReader, steps: &[Step]) -> (Experiment, String) {
     }
 }
 
-/// BLAKE3 of a file, hex (the cache key and the provenance of a model).
-pub(crate) fn hash_file(path: &Path) -> Result<String, DatasetError> {
+/// BLAKE3 of the bag's MCAP files in order, hex (the cache key and the provenance of a
+/// model): for a bag of one file, that file's `b3sum`; for a split bag, that of their
+/// concatenation.
+pub(crate) fn hash_bag(reader: &BagReader) -> Result<String, DatasetError> {
     let mut hasher = blake3::Hasher::new();
-    let file = std::fs::File::open(path).map_err(|e| DatasetError::Cache {
-        path: path.to_owned(),
-        problem: format!("cannot read for hashing: {e}"),
-    })?;
-    hasher
-        .update_reader(file)
-        .map_err(|e| DatasetError::Cache {
+    for file in reader.files() {
+        let path = &file.path;
+        let cannot = |e: std::io::Error| DatasetError::Cache {
             path: path.to_owned(),
             problem: format!("cannot read for hashing: {e}"),
-        })?;
+        };
+        hasher
+            .update_reader(std::fs::File::open(path).map_err(cannot)?)
+            .map_err(cannot)?;
+    }
     Ok(hasher.finalize().to_hex().to_string())
 }
 
@@ -468,7 +470,7 @@ pub fn from_bag(
     }
     data.sources.push(BagSource {
         path: bag.display().to_string(),
-        blake3: hash_file(reader.path())?,
+        blake3: hash_bag(&reader)?,
         rows: data.rows(),
     });
     Ok(data)

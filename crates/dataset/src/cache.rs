@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 
-use crate::build::hash_file;
+use crate::build::hash_bag;
 use crate::{ActionSource, BagSource, Dataset, DatasetError, Experiment, from_bag};
 
 /// Bumped whenever the data model or the file layout changes, so old files are rebuilt.
@@ -65,7 +65,7 @@ impl Cache {
         action: ActionSource,
     ) -> Result<(Dataset, CacheOutcome), DatasetError> {
         let reader = causal_arm_bag::BagReader::open(bag)?;
-        let hash = hash_file(reader.path())?;
+        let hash = hash_bag(&reader)?;
         drop(reader);
         let file = self.file_for(&hash, action);
         if file.exists() {

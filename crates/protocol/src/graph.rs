@@ -312,18 +312,27 @@ pub fn server_default_text(server: &str, param: &str) -> &'static str {
     default_text(server, param)
 }
 
+/// The embedded graph's default of parameter `param` of run node `node`, as text (the
+/// default of the `launch` and `generate` option for the same setting).
+pub fn node_default_text(node: &str, param: &str) -> &'static str {
+    default_text(node, param)
+}
+
 /// Owner of the run parameters in the table of [`default_text`] (no node has this name).
 const RUN: &str = "";
 
 /// Every default of the graph, rendered once: (owner, parameter, text), the owner being
-/// [`RUN`] for a run parameter or the server's name; "" for a name the graph lacks.
+/// [`RUN`] for a run parameter or the node's or server's name; "" for a name the graph lacks.
 fn default_text(owner: &str, param: &str) -> &'static str {
     static TEXTS: LazyLock<Vec<(String, String, String)>> = LazyLock::new(|| match graph() {
         Ok(g) => {
             let run = g.run_params.iter().map(|p| (RUN, p));
             let servers =
                 (g.servers.iter()).flat_map(|s| s.params.iter().map(|p| (s.name.as_str(), p)));
+            let nodes =
+                (g.nodes.iter()).flat_map(|n| n.params.iter().map(|p| (n.name.as_str(), p)));
             run.chain(servers)
+                .chain(nodes)
                 .map(|(o, p)| (o.to_owned(), p.name.clone(), p.default.to_string()))
                 .collect()
         }

@@ -99,7 +99,11 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
     if output.is_empty() {
         bail!("parameter \"output\" is required: --ros-args -p output:=bags/NAME");
     }
-    let run = RunParams::from_params(node.params(), &output)?;
+    let mut run = RunParams::from_params(node.params(), &output)?;
+    run.options.split = causal_arm_datagen::SplitLimits::from_ros2_units(
+        node.params().integer("max_bag_size") as u64,
+        node.params().integer("max_bag_duration") as u64,
+    );
     validate(&run.options)?;
     let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let stop = stop_flag();

@@ -1,9 +1,41 @@
-//! A bag's files: rosbag2 names a bag's MCAP files `<bag>_<n>.mcap`, `n` counting the
-//! splits from 0, and a reader takes them in that order.
+//! A bag's files: when a writer starts the next one, and how rosbag2 names them
+//! (`<bag>_<n>.mcap`, `n` counting the splits from 0, the order a reader takes them in).
 
 use std::path::{Path, PathBuf};
 
 use crate::BagError;
+
+/// When a bag starts its next file, as `ros2 bag record --max-bag-size / --max-bag-duration`
+/// do: long recordings in files of bounded size, each finished as it closes, so a crash
+/// costs at most the open one's unlanded tail and every closed file opens on its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SplitLimits {
+    /// Start a new file before the next message once the open one holds this many bytes
+    /// (files grow by whole chunks, so they end one chunk past it at most).
+    pub max_bytes: Option<u64>,
+    /// Start a new file before a message logged more than this long after the open
+    /// file's first message.
+    pub max_duration_ns: Option<u64>,
+}
+
+impl SplitLimits {
+    /// Limits from rosbag2's command-line units (bytes, whole seconds; 0 = no limit).
+    pub fn from_ros2_units(max_bag_size: u64, max_bag_duration_s: u64) -> Self {
+        Self {
+            max_bytes: (max_bag_size > 0).then_some(max_bag_size),
+            max_duration_ns: (max_bag_duration_s > 0)
+                .then(|| max_bag_duration_s.saturating_mul(1_000_000_000)),
+        }
+    }
+
+    /// The limits in rosbag2's command-line units: (bytes, whole seconds), 0 = no limit.
+    pub fn to_ros2_units(&self) -> (u64, u64) {
+        (
+            self.max_bytes.unwrap_or(0),
+            self.max_duration_ns.map_or(0, |ns| ns / 1_000_000_000),
+        )
+    }
+}
 
 /// The name rosbag2 gives split `index` of the bag in directory `dir`.
 pub(crate) fn split_file_name(dir: &Path, index: usize) -> String {

@@ -24,10 +24,11 @@ mod shards;
 mod writer;
 
 pub use check::Damage;
+pub use files::SplitLimits;
 pub use reader::{BagFile, BagReader, RawMessage, ReadPolicy, TopicInfo};
 pub use shards::{SHARD_SET_FILE, ShardSet, bags_in};
 pub use writer::{
-    BAG_METADATA_NAME, BagOptions, BagSummary, BagWriter, Compression, SplitLimits, existing_bag,
+    BAG_METADATA_NAME, BagOptions, BagSummary, BagWriter, Compression, existing_bag,
     offered_qos_yaml,
 };
 

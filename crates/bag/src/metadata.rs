@@ -1,10 +1,11 @@
-//! `metadata.yaml` read back: a bag directory's index must agree with its MCAP file, so a
-//! file cut short or damaged after the index was written is never read as a smaller bag.
+//! `metadata.yaml`, rosbag2's index of a bag: written atomically by the writer as chunks
+//! land, and read back against the MCAP files, so a file cut short, lost or damaged after
+//! the index was written is never read as a smaller bag.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::{BagError, BagReader};
 
@@ -144,4 +145,83 @@ fn check_file_counts(counted: &[FileCount], reader: &BagReader) -> Result<(), St
         }
     }
     Ok(())
+}
+
+/// Writes `dir/metadata.yaml` atomically (a temporary file renamed into place), so a
+/// reader never sees half an index.
+pub(crate) fn write(dir: &Path, info: BagfileInformation) -> Result<(), BagError> {
+    let final_path = dir.join("metadata.yaml");
+    let text = serde_norway::to_string(&Metadata {
+        rosbag2_bagfile_information: info,
+    })
+    .map_err(|e| BagError::Metadata {
+        path: final_path.clone(),
+        problem: e.to_string(),
+    })?;
+    let tmp = dir.join(".metadata.yaml.tmp");
+    let io = |path: &Path, action: &'static str| {
+        let path = path.to_owned();
+        move |error| BagError::Io {
+            path,
+            action,
+            error,
+        }
+    };
+    std::fs::write(&tmp, text).map_err(io(&tmp, "writing"))?;
+    std::fs::rename(&tmp, &final_path).map_err(io(&final_path, "renaming into place"))
+}
+
+/// rosbag2's `metadata.yaml` (format 9) as written.
+#[derive(Serialize)]
+struct Metadata {
+    rosbag2_bagfile_information: BagfileInformation,
+}
+
+#[derive(Serialize)]
+pub(crate) struct BagfileInformation {
+    pub(crate) version: u32,
+    pub(crate) storage_identifier: String,
+    pub(crate) duration: Nanoseconds,
+    pub(crate) starting_time: NanosecondsSinceEpoch,
+    pub(crate) message_count: u64,
+    pub(crate) topics_with_message_count: Vec<TopicWithCount>,
+    pub(crate) compression_format: String,
+    pub(crate) compression_mode: String,
+    pub(crate) relative_file_paths: Vec<String>,
+    pub(crate) files: Vec<FileInformation>,
+    pub(crate) custom_data: BTreeMap<String, String>,
+    pub(crate) ros_distro: String,
+}
+
+#[derive(Serialize)]
+pub(crate) struct Nanoseconds {
+    pub(crate) nanoseconds: u64,
+}
+
+#[derive(Serialize)]
+pub(crate) struct NanosecondsSinceEpoch {
+    pub(crate) nanoseconds_since_epoch: u64,
+}
+
+#[derive(Serialize)]
+pub(crate) struct TopicWithCount {
+    pub(crate) topic_metadata: TopicMetadata,
+    pub(crate) message_count: u64,
+}
+
+#[derive(Serialize)]
+pub(crate) struct TopicMetadata {
+    pub(crate) name: String,
+    pub(crate) r#type: String,
+    pub(crate) serialization_format: String,
+    pub(crate) offered_qos_profiles: serde_norway::Value,
+    pub(crate) type_description_hash: String,
+}
+
+#[derive(Serialize)]
+pub(crate) struct FileInformation {
+    pub(crate) path: String,
+    pub(crate) starting_time: NanosecondsSinceEpoch,
+    pub(crate) duration: Nanoseconds,
+    pub(crate) message_count: u64,
 }

@@ -6,9 +6,13 @@ use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 
 use causal_arm_msgs::RosMessage;
-use serde::Serialize;
 
 use crate::BagError;
+use crate::files::SplitLimits;
+use crate::metadata::{
+    BagfileInformation, FileInformation, Nanoseconds, NanosecondsSinceEpoch, TopicMetadata,
+    TopicWithCount,
+};
 
 /// Chunk compression.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -37,38 +41,6 @@ pub struct BagOptions {
     pub custom_data: BTreeMap<String, String>,
     /// When to start the bag's next file (never, by default).
     pub split: SplitLimits,
-}
-
-/// When a bag starts its next file, as `ros2 bag record --max-bag-size / --max-bag-duration`
-/// do: long recordings in files of bounded size, each finished as it closes, so a crash
-/// costs at most the open one's unlanded tail and every closed file opens on its own.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct SplitLimits {
-    /// Start a new file before the next message once the open one holds this many bytes
-    /// (files grow by whole chunks, so they end one chunk past it at most).
-    pub max_bytes: Option<u64>,
-    /// Start a new file before a message logged more than this long after the open
-    /// file's first message.
-    pub max_duration_ns: Option<u64>,
-}
-
-impl SplitLimits {
-    /// Limits from rosbag2's command-line units (bytes, whole seconds; 0 = no limit).
-    pub fn from_ros2_units(max_bag_size: u64, max_bag_duration_s: u64) -> Self {
-        Self {
-            max_bytes: (max_bag_size > 0).then_some(max_bag_size),
-            max_duration_ns: (max_bag_duration_s > 0)
-                .then(|| max_bag_duration_s.saturating_mul(1_000_000_000)),
-        }
-    }
-
-    /// The limits in rosbag2's command-line units: (bytes, whole seconds), 0 = no limit.
-    pub fn to_ros2_units(&self) -> (u64, u64) {
-        (
-            self.max_bytes.unwrap_or(0),
-            self.max_duration_ns.map_or(0, |ns| ns / 1_000_000_000),
-        )
-    }
 }
 
 /// Name of the MCAP metadata record carrying [`BagOptions::custom_data`].
@@ -611,18 +583,7 @@ impl BagWriter {
             custom_data: self.custom_data.clone(),
             ros_distro: "jazzy".to_owned(),
         };
-        let text = serde_norway::to_string(&Metadata {
-            rosbag2_bagfile_information: info,
-        })
-        .map_err(|e| BagError::Metadata {
-            path: self.dir.join("metadata.yaml"),
-            problem: e.to_string(),
-        })?;
-        let tmp = self.dir.join(".metadata.yaml.tmp");
-        let final_path = self.dir.join("metadata.yaml");
-        std::fs::write(&tmp, text).map_err(io(&tmp, "writing"))?;
-        std::fs::rename(&tmp, &final_path).map_err(io(&final_path, "renaming into place"))?;
-        Ok(())
+        crate::metadata::write(&self.dir, info)
     }
 }
 
@@ -634,58 +595,4 @@ impl Drop for BagWriter {
             tracing::error!("finalizing {} on drop failed: {e}", self.dir.display());
         }
     }
-}
-
-#[derive(Serialize)]
-struct Metadata {
-    rosbag2_bagfile_information: BagfileInformation,
-}
-
-#[derive(Serialize)]
-struct BagfileInformation {
-    version: u32,
-    storage_identifier: String,
-    duration: Nanoseconds,
-    starting_time: NanosecondsSinceEpoch,
-    message_count: u64,
-    topics_with_message_count: Vec<TopicWithCount>,
-    compression_format: String,
-    compression_mode: String,
-    relative_file_paths: Vec<String>,
-    files: Vec<FileInformation>,
-    custom_data: BTreeMap<String, String>,
-    ros_distro: String,
-}
-
-#[derive(Serialize)]
-struct Nanoseconds {
-    nanoseconds: u64,
-}
-
-#[derive(Serialize)]
-struct NanosecondsSinceEpoch {
-    nanoseconds_since_epoch: u64,
-}
-
-#[derive(Serialize)]
-struct TopicWithCount {
-    topic_metadata: TopicMetadata,
-    message_count: u64,
-}
-
-#[derive(Serialize)]
-struct TopicMetadata {
-    name: String,
-    r#type: String,
-    serialization_format: String,
-    offered_qos_profiles: serde_norway::Value,
-    type_description_hash: String,
-}
-
-#[derive(Serialize)]
-struct FileInformation {
-    path: String,
-    starting_time: NanosecondsSinceEpoch,
-    duration: Nanoseconds,
-    message_count: u64,
 }

@@ -8,7 +8,7 @@ datagen_bench.py), the seconds spent besides stepping (start-up, discovery, the 
 steps lost; then the means. A build is a directory holding
 `causal-arm` and the node binaries (copy them out of target/release before rebuilding).
 Usage (starts DDS participants: inside tests/netns-run, on a quiet machine):
-  tests/netns-run target/pyvenv/bin/python tests/bench/dds_ab.py A_DIR B_DIR [--steps N] [--rounds R] [--shards 1,2]
+  tests/netns-run target/pyvenv/bin/python tests/bench/dds_ab.py A_DIR B_DIR [C_DIR …] [--steps N] [--rounds R] [--shards 1,2]
 """
 
 import argparse
@@ -19,11 +19,13 @@ from datagen_bench import ours_dds
 
 def main():
     parser = argparse.ArgumentParser()
-    parser.add_argument("builds", nargs=2)
+    parser.add_argument("builds", nargs="+", help="two or more build directories, run in turn")
     parser.add_argument("--steps", type=int, default=20000)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--shards", default="1,2")
     args = parser.parse_args()
+    if len(args.builds) < 2:
+        parser.error("give at least two builds to compare")
     results: dict[tuple[str, int], list[tuple[float, float, int]]] = {}
     for _ in range(args.rounds):
         for shards in (int(s) for s in args.shards.split(",")):

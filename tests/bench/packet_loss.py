@@ -16,7 +16,7 @@ With --baseline DIR (a directory holding another build's `causal-arm` and node b
 that build's launch runs right after ours at each loss rate, for a before / after.
 
 Usage (root inside the namespace, as tests/netns-run gives):
-  tests/netns-run target/pyvenv/bin/python tests/bench/packet_loss.py [--steps 3000] [--cap 120] [--baseline DIR]
+  tests/netns-run target/pyvenv/bin/python tests/bench/packet_loss.py [--steps 3000] [--cap 120] [--runs 3] [--baseline DIR]
 """
 
 import argparse
@@ -204,6 +204,15 @@ def trainer_calls(bin_dir: pathlib.Path, model_dir: pathlib.Path, calls: int):
     return tuple(float(x) for x in found.groups())
 
 
+def summary(runs):
+    """(median steps/s, fewest steps recorded, every bag equal to generate's: True / False / None
+    if one was cut, "min-max" text) of several launches of one build."""
+    rates = sorted(r[0] for r in runs)
+    sames = [r[2] for r in runs]
+    same = False if False in sames else (None if None in sames else True)
+    return rates[len(rates) // 2], min(r[1] for r in runs), same, f"{rates[0]:.0f}-{rates[-1]:.0f}"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=3000)
@@ -213,6 +222,8 @@ def main():
     ap.add_argument("--losses", default=",".join(str(p) for p in LOSSES))
     ap.add_argument("--bin-dir", type=pathlib.Path, default=REPO / "target" / "release")
     ap.add_argument("--baseline", type=pathlib.Path, help="another build's binaries, run beside ours")
+    ap.add_argument("--runs", type=int, default=3,
+                    help="launches per build and loss rate, alternating builds; the median is reported")
     ap.add_argument("--anchor-role", choices=["ping", "pong"], help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.anchor_role:
@@ -232,12 +243,15 @@ def main():
     try:
         for p in [float(x) for x in args.losses.split(",")]:
             set_loss(p)
-            print(f"loss {p:.0%}: launch", flush=True)
-            rate, got, same = ours(cli, args.steps, args.cap, tmp / "reference", tmp)
-            before = None
-            if args.baseline:
-                print(f"loss {p:.0%}: launch of the baseline", flush=True)
-                before = ours(args.baseline / "causal-arm", args.steps, args.cap, tmp / "reference", tmp)
+            mine, theirs = [], []
+            for run in range(args.runs):
+                print(f"loss {p:.0%}: launch {run + 1}/{args.runs}", flush=True)
+                mine.append(ours(cli, args.steps, args.cap, tmp / "reference", tmp))
+                if args.baseline:
+                    print(f"loss {p:.0%}: launch {run + 1}/{args.runs} of the baseline", flush=True)
+                    theirs.append(ours(args.baseline / "causal-arm", args.steps, args.cap, tmp / "reference", tmp))
+            rate, got, same, spread = summary(mine)
+            before = summary(theirs) if args.baseline else None
             print(f"loss {p:.0%}: anchors", flush=True)
             cyclone = anchor_rate("cyclone", args.anchor_seconds)
             rclpy = anchor_rate("rclpy", args.anchor_seconds)
@@ -245,24 +259,25 @@ def main():
             calls = [trainer_calls(args.bin_dir, tmp / "models", args.calls)]
             if args.baseline:
                 calls.append(trainer_calls(args.baseline, tmp / "models", args.calls))
-            rows.append((p, rate, got, same, cyclone, rclpy, calls, before))
+            rows.append((p, (rate, got, same, spread), cyclone, rclpy, calls, before))
     finally:
         set_loss(0)
-    print(f"\nlaunch exp1 --steps {args.steps} (cut at {args.cap:.0f} s); anchors: lock-step ping-pong, "
-          f"reliable, keep last {ANCHOR_DEPTH}, {args.anchor_seconds:.0f} s each")
-    print(f"{'loss':>5} {'ours steps/s':>13} {'of 0 %':>7} {'steps':>6} {'bag = generate':>15} "
+    print(f"\nlaunch exp1 --steps {args.steps} (cut at {args.cap:.0f} s), median of {args.runs} launches "
+          f"(min-max); anchors: lock-step ping-pong, reliable, keep last {ANCHOR_DEPTH}, "
+          f"{args.anchor_seconds:.0f} s each")
+    print(f"{'loss':>5} {'ours steps/s':>13} {'min-max':>13} {'of 0 %':>7} {'steps':>6} {'bag = generate':>15} "
           f"{'CycloneDDS':>11} {'of 0 %':>7} {'rclpy/Fast DDS':>15} {'of 0 %':>7}")
     base = rows[0]
     verdicts = {True: "yes", False: "NO", None: "cut"}
-    for p, rate, got, same, cyclone, rclpy, _, _ in rows:
-        print(f"{p:>5.0%} {rate:>13.1f} {rate / base[1]:>7.1%} {got:>6} {verdicts[same]:>15} "
-              f"{cyclone:>11.1f} {cyclone / base[4]:>7.1%} {rclpy:>15.1f} {rclpy / base[5]:>7.1%}")
+    for p, (rate, got, same, spread), cyclone, rclpy, _, _ in rows:
+        print(f"{p:>5.0%} {rate:>13.1f} {spread:>13} {rate / base[1][0]:>7.1%} {got:>6} {verdicts[same]:>15} "
+              f"{cyclone:>11.1f} {cyclone / base[2]:>7.1%} {rclpy:>15.1f} {rclpy / base[3]:>7.1%}")
     if args.baseline:
         print(f"\nbaseline build ({args.baseline}), same runs")
-        print(f"{'loss':>5} {'steps/s':>13} {'of 0 %':>7} {'steps':>6} {'bag = generate':>15}")
-        first = base[7][0]
-        for p, *_, (rate, got, same) in rows:
-            print(f"{p:>5.0%} {rate:>13.1f} {rate / first:>7.1%} {got:>6} {verdicts[same]:>15}")
+        print(f"{'loss':>5} {'steps/s':>13} {'min-max':>13} {'of 0 %':>7} {'steps':>6} {'bag = generate':>15}")
+        first = base[5][0]
+        for p, *_, (rate, got, same, spread) in rows:
+            print(f"{p:>5.0%} {rate:>13.1f} {spread:>13} {rate / first:>7.1%} {got:>6} {verdicts[same]:>15}")
     print(f"\none-row /trainer/predict_next_state: `causal-arm service call --count {args.calls}` to the "
           "trainer node, round trips (ms)")
     print(f"{'loss':>5} {'p50':>9} {'p99':>9} {'max':>9}" + (f" {'base p50':>9} {'base p99':>9} {'base max':>9}"

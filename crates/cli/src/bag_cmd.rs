@@ -14,6 +14,18 @@ use serde_json::json;
 pub struct BagArgs {
     #[command(subcommand)]
     command: BagCommand,
+    /// How to treat damage in the bags read (for every `bag` subcommand).
+    #[command(flatten)]
+    pub read: ReadArgs,
+}
+
+/// `--salvage`, for the commands that read bags (only they take it).
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct ReadArgs {
+    /// Read damaged bags anyway: skip damaged chunks with a warning instead of refusing the
+    /// bag (a crash tail is always read up to its last complete chunk).
+    #[arg(long, global = true)]
+    pub salvage: bool,
 }
 
 #[derive(Debug, clap::Subcommand)]

@@ -16,6 +16,9 @@ use crate::choice::choice;
 /// Arguments of `causal-arm discover`.
 #[derive(Debug, Args)]
 pub struct DiscoverArgs {
+    /// How to treat damage in the bags read.
+    #[command(flatten)]
+    pub read: crate::bag_cmd::ReadArgs,
     /// Bag(s) or shard sets of one experiment.
     #[arg(long = "bag", required = true)]
     bags: Vec<PathBuf>,

@@ -68,6 +68,9 @@ fn explainer_default(param: &str) -> &'static str {
 /// Arguments of `causal-arm explain`.
 #[derive(Debug, Args)]
 pub struct ExplainArgs {
+    /// How to treat damage in the bags read.
+    #[command(flatten)]
+    pub read: crate::bag_cmd::ReadArgs,
     /// Model directory written by `causal-arm train`.
     #[arg(long)]
     model: PathBuf,

@@ -13,6 +13,9 @@ use crate::progress::Counter;
 /// Arguments of `causal-arm intervene`.
 #[derive(Debug, Args)]
 pub struct InterveneArgs {
+    /// How to treat damage in the bags read.
+    #[command(flatten)]
+    pub read: crate::bag_cmd::ReadArgs,
     /// Experiment of the bag: exp1 or exp2.
     #[arg(value_parser = choice::<Experiment>())]
     experiment: Experiment,

@@ -31,10 +31,6 @@ use clap::{Parser, Subcommand};
     after_help = "ROS arguments go after --ros-args, e.g. `causal-arm topic echo /joint_states --type sensor_msgs/msg/JointState --ros-args -r __node:=my_echo`.\nEnvironment: ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_LOCALHOST_ONLY, RMW_IMPLEMENTATION, ROS_SECURITY_ENABLE, ROS_SECURITY_STRATEGY, ROS_SECURITY_KEYSTORE, ROS_SECURITY_ENCLAVE_OVERRIDE, RUST_LOG."
 )]
 struct Cli {
-    /// Read damaged bags anyway: skip damaged chunks with a warning instead of refusing the
-    /// bag (a crash tail is always read up to its last complete chunk).
-    #[arg(long, global = true)]
-    salvage: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -80,6 +76,20 @@ enum Command {
     Security(security_cmd::SecurityArgs),
 }
 
+/// Whether a command that reads bags was given `--salvage` (the others do not take it).
+fn salvage_asked(command: &Command) -> bool {
+    match command {
+        Command::Bag(args) => args.read.salvage,
+        Command::Play(args) => args.read.salvage,
+        Command::Train(args) => args.read.salvage,
+        Command::Rollout(args) => args.read.salvage,
+        Command::Explain(args) => args.read.salvage,
+        Command::Discover(args) => args.read.salvage,
+        Command::Intervene(args) => args.read.salvage,
+        _ => false,
+    }
+}
+
 fn main() -> std::process::ExitCode {
     // Like any Unix tool, end quietly when the reader of stdout goes away (`| head`)
     // rather than panic on EPIPE (Rust ignores SIGPIPE unless told otherwise).
@@ -108,7 +118,7 @@ fn main() -> std::process::ExitCode {
     // Warnings of the commands themselves (a bag cut short, a dataset not cached) are
     // printed, not only those of nodes.
     causal_arm_node::logging::init_with_level(ros_args.log_level.as_deref());
-    if cli.salvage {
+    if salvage_asked(&cli.command) {
         causal_arm_bag::ReadPolicy::Salvage.set_process_default();
     }
     let result = match &cli.command {

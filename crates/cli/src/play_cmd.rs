@@ -15,6 +15,9 @@ use causal_arm_protocol::time_from_ns;
 /// Arguments of `causal-arm play`.
 #[derive(Debug, clap::Args)]
 pub struct PlayArgs {
+    /// How to treat damage in the bags read.
+    #[command(flatten)]
+    pub read: crate::bag_cmd::ReadArgs,
     /// Bag directory (or .mcap file) to play.
     bag: PathBuf,
     /// Speed factor of the original timing; 0 = as fast as possible.

@@ -14,6 +14,9 @@ use crate::train_cmd::show;
 /// Arguments of `causal-arm rollout`.
 #[derive(Debug, Args)]
 pub struct RolloutArgs {
+    /// How to treat damage in the bags read.
+    #[command(flatten)]
+    pub read: crate::bag_cmd::ReadArgs,
     /// Model directory written by `causal-arm train`.
     #[arg(long)]
     model: PathBuf,

@@ -27,6 +27,9 @@ fn trainer_default(param: &str) -> &'static str {
 /// Arguments of `causal-arm train`.
 #[derive(Debug, Args)]
 pub struct TrainArgs {
+    /// How to treat damage in the bags read.
+    #[command(flatten)]
+    pub read: crate::bag_cmd::ReadArgs,
     /// Bag directory (repeat for several bags of one experiment).
     #[arg(long = "bag", required = true)]
     bags: Vec<PathBuf>,

@@ -73,11 +73,7 @@ pub(crate) fn bag_files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
     if path.is_file() {
         return Ok(vec![path.to_owned()]);
     }
-    let entries = std::fs::read_dir(path).map_err(|error| BagError::Io {
-        path: path.to_owned(),
-        action: "opening the bag",
-        error,
-    })?;
+    let entries = std::fs::read_dir(path).map_err(BagError::io(path, "opening the bag"))?;
     let mut files: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "mcap"))

@@ -32,7 +32,7 @@ pub use writer::{
     offered_qos_yaml,
 };
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Every bag failure names the bag (or file) and what was expected.
 #[derive(Debug, thiserror::Error)]
@@ -106,4 +106,29 @@ pub enum BagError {
         /// What is wrong.
         problem: String,
     },
+}
+
+impl BagError {
+    /// A filesystem failure on `path` while doing `action`, for `map_err`: every I/O
+    /// error of this crate names the path and what was being done.
+    pub(crate) fn io(
+        path: &Path,
+        action: &'static str,
+    ) -> impl FnOnce(std::io::Error) -> BagError + use<> {
+        let path = path.to_owned();
+        move |error| BagError::Io {
+            path,
+            action,
+            error,
+        }
+    }
+}
+
+/// Writes `text` to `path` atomically (a hidden temporary file beside it, renamed into
+/// place), so a reader never sees half an index or manifest.
+pub(crate) fn write_atomically(path: &Path, text: &str) -> Result<(), BagError> {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let tmp = path.with_file_name(format!(".{name}.tmp"));
+    std::fs::write(&tmp, text).map_err(BagError::io(&tmp, "writing"))?;
+    std::fs::rename(&tmp, path).map_err(BagError::io(path, "renaming into place"))
 }

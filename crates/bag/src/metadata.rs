@@ -7,7 +7,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::{BagError, BagReader};
+use crate::{BagError, BagFile, BagReader};
 
 /// The parts of rosbag2's `metadata.yaml` (any version) that describe what the file holds.
 #[derive(Deserialize)]
@@ -74,9 +74,10 @@ pub(crate) fn check(dir: &Path, reader: &BagReader) -> Result<(), BagError> {
     let index: Index =
         serde_norway::from_str(&text).map_err(|e| problem(format!("not a rosbag2 index: {e}")))?;
     let info = index.rosbag2_bagfile_information;
-    check_files(&info.relative_file_paths, reader).map_err(problem)?;
-    if reader.files().len() > 1 {
-        check_file_counts(&info.files, reader).map_err(problem)?;
+    let files = reader.files();
+    check_files(&info.relative_file_paths, &files).map_err(problem)?;
+    if files.len() > 1 {
+        check_file_counts(&info.files, &files).map_err(problem)?;
     }
     let held: BTreeMap<String, u64> = reader
         .topics()
@@ -107,11 +108,10 @@ pub(crate) fn check(dir: &Path, reader: &BagReader) -> Result<(), BagError> {
 /// read as a smaller bag), none unlisted but a last one without messages (a writer killed
 /// between opening a split and listing it). An index that lists none (old formats) is
 /// not checked.
-fn check_files(listed: &[String], reader: &BagReader) -> Result<(), String> {
+fn check_files(listed: &[String], files: &[BagFile]) -> Result<(), String> {
     if listed.is_empty() {
         return Ok(());
     }
-    let files = reader.files();
     let found: Vec<String> = files
         .iter()
         .map(|f| crate::files::file_name(&f.path))
@@ -121,7 +121,7 @@ fn check_files(listed: &[String], reader: &BagReader) -> Result<(), String> {
             "lists {missing}, which is missing from the bag (it holds {found:?}): a split was lost"
         ));
     }
-    for (i, (name, file)) in found.iter().zip(&files).enumerate() {
+    for (i, (name, file)) in found.iter().zip(files).enumerate() {
         let fresh_last = i + 1 == files.len() && file.message_count == 0;
         if !listed.contains(name) && !fresh_last {
             return Err(format!("lists files {listed:?}, not {name}"));
@@ -132,8 +132,8 @@ fn check_files(listed: &[String], reader: &BagReader) -> Result<(), String> {
 
 /// Each file holds at least what the index counts in it, so the split of a split bag cut
 /// short after it was indexed is named.
-fn check_file_counts(counted: &[FileCount], reader: &BagReader) -> Result<(), String> {
-    for file in reader.files() {
+fn check_file_counts(counted: &[FileCount], files: &[BagFile]) -> Result<(), String> {
+    for file in files {
         let name = crate::files::file_name(&file.path);
         if let Some(c) = counted.iter().find(|c| c.path == name)
             && c.message_count > file.message_count
@@ -158,17 +158,7 @@ pub(crate) fn write(dir: &Path, info: BagfileInformation) -> Result<(), BagError
         path: final_path.clone(),
         problem: e.to_string(),
     })?;
-    let tmp = dir.join(".metadata.yaml.tmp");
-    let io = |path: &Path, action: &'static str| {
-        let path = path.to_owned();
-        move |error| BagError::Io {
-            path,
-            action,
-            error,
-        }
-    };
-    std::fs::write(&tmp, text).map_err(io(&tmp, "writing"))?;
-    std::fs::rename(&tmp, &final_path).map_err(io(&final_path, "renaming into place"))
+    crate::write_atomically(&final_path, &text)
 }
 
 /// rosbag2's `metadata.yaml` (format 9) as written.

@@ -93,14 +93,7 @@ struct Part {
 
 impl Part {
     fn open(mcap_path: PathBuf) -> Result<Self, BagError> {
-        let io = |action: &'static str| {
-            let path = mcap_path.clone();
-            move |error| BagError::Io {
-                path,
-                action,
-                error,
-            }
-        };
+        let io = |action| BagError::io(&mcap_path, action);
         let file = std::fs::File::open(&mcap_path).map_err(io("opening"))?;
         let len = file.metadata().map_err(io("reading metadata of"))?.len();
         let bytes = if len == 0 {

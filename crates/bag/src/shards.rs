@@ -61,14 +61,12 @@ impl ShardSet {
             }
             remove_old(dir)?;
         }
-        std::fs::create_dir_all(dir).map_err(|e| io_err(dir, "creating the shard set", e))?;
+        std::fs::create_dir_all(dir).map_err(BagError::io(dir, "creating the shard set"))?;
         let text = serde_norway::to_string(self).map_err(|e| BagError::Metadata {
             path: dir.join(SHARD_SET_FILE),
             problem: e.to_string(),
         })?;
-        let (tmp, file) = (dir.join(".shard_set.yaml.tmp"), dir.join(SHARD_SET_FILE));
-        std::fs::write(&tmp, text).map_err(|e| io_err(&tmp, "writing", e))?;
-        std::fs::rename(&tmp, &file).map_err(|e| io_err(&file, "renaming into place", e))
+        crate::write_atomically(&dir.join(SHARD_SET_FILE), &text)
     }
 
     /// Reads the manifest of the set in `dir`, or `None` when `dir` is not a shard set.
@@ -80,7 +78,7 @@ impl ShardSet {
         let text = match std::fs::read_to_string(&file) {
             Ok(text) => text,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-            Err(e) => return Err(io_err(&file, "reading", e)),
+            Err(e) => return Err(BagError::io(&file, "reading")(e)),
         };
         let set: Self = serde_norway::from_str(&text).map_err(|e| BagError::Metadata {
             path: file.clone(),
@@ -135,29 +133,21 @@ fn remove_old(dir: &Path) -> Result<(), BagError> {
             let shard = dir.join(name);
             if shard.is_dir() {
                 std::fs::remove_dir_all(&shard)
-                    .map_err(|e| io_err(&shard, "removing an old shard", e))?;
+                    .map_err(BagError::io(&shard, "removing an old shard"))?;
             }
         }
     }
     for entry in std::fs::read_dir(dir)
-        .map_err(|e| io_err(dir, "listing", e))?
+        .map_err(BagError::io(dir, "listing"))?
         .flatten()
     {
         let name = entry.file_name().to_string_lossy().into_owned();
         if name == "metadata.yaml" || name.ends_with(".mcap") || name == SHARD_SET_FILE {
             std::fs::remove_file(entry.path())
-                .map_err(|e| io_err(&entry.path(), "removing an old bag file", e))?;
+                .map_err(BagError::io(&entry.path(), "removing an old bag file"))?;
         }
     }
     Ok(())
-}
-
-fn io_err(path: &Path, action: &'static str, error: std::io::Error) -> BagError {
-    BagError::Io {
-        path: path.to_owned(),
-        action,
-        error,
-    }
 }
 
 #[cfg(test)]

@@ -119,8 +119,6 @@ pub struct BagWriter {
     file_bytes: u64,
     writer: Option<mcap::Writer<BufWriter<File>>>,
     topics: BTreeMap<String, TopicEntry>,
-    first_ns: Option<u64>,
-    last_ns: u64,
     custom_data: BTreeMap<String, String>,
     /// Target uncompressed bytes per chunk; the writer closes chunks itself so it can
     /// update `metadata.yaml` after each one lands.
@@ -166,7 +164,7 @@ fn open_mcap(
     compression: Option<mcap::Compression>,
     custom_data: &BTreeMap<String, String>,
 ) -> Result<mcap::Writer<BufWriter<File>>, BagError> {
-    let file = File::create(path).map_err(io(path, "creating"))?;
+    let file = File::create(path).map_err(BagError::io(path, "creating"))?;
     let mut writer = mcap::WriteOptions::new()
         .profile("ros2")
         .library(concat!("causal-arm ", env!("CARGO_PKG_VERSION")))
@@ -211,14 +209,6 @@ fn mcap_error(path: &Path, e: mcap::McapError) -> BagError {
     }
 }
 
-fn io<'a>(path: &'a Path, action: &'static str) -> impl FnOnce(std::io::Error) -> BagError + 'a {
-    move |error| BagError::Io {
-        path: path.to_owned(),
-        action,
-        error,
-    }
-}
-
 /// Whether `dir` already holds a bag, and what shows it (so tools refuse before starting work).
 pub fn existing_bag(dir: &Path) -> Option<String> {
     let entries = std::fs::read_dir(dir).ok()?;
@@ -241,17 +231,17 @@ impl BagWriter {
                 });
             }
             for entry in std::fs::read_dir(dir)
-                .map_err(io(dir, "listing"))?
+                .map_err(BagError::io(dir, "listing"))?
                 .flatten()
             {
                 let name = entry.file_name().to_string_lossy().into_owned();
                 if name == "metadata.yaml" || name.ends_with(".mcap") {
                     std::fs::remove_file(entry.path())
-                        .map_err(io(&entry.path(), "removing old bag file"))?;
+                        .map_err(BagError::io(&entry.path(), "removing old bag file"))?;
                 }
             }
         }
-        std::fs::create_dir_all(dir).map_err(io(dir, "creating the bag directory"))?;
+        std::fs::create_dir_all(dir).map_err(BagError::io(dir, "creating the bag directory"))?;
         let name = crate::files::split_file_name(dir, 0);
         let mcap_path = dir.join(&name);
         let compression = match options.compression {
@@ -270,8 +260,6 @@ impl BagWriter {
             custom_data: options.custom_data,
             writer: Some(writer),
             topics: BTreeMap::new(),
-            first_ns: None,
-            last_ns: 0,
             chunk_size: options.chunk_size.max(1),
             chunk_bytes: 0,
             landed: 0,
@@ -379,8 +367,6 @@ impl BagWriter {
         };
         entry.sequence = entry.sequence.wrapping_add(1);
         entry.count += 1;
-        self.first_ns = Some(self.first_ns.map_or(log_time_ns, |f| f.min(log_time_ns)));
-        self.last_ns = self.last_ns.max(log_time_ns);
         self.open_file().add(log_time_ns);
         let result = self
             .writer
@@ -427,11 +413,21 @@ impl BagWriter {
         result.map_err(|e| self.mcap_err(e))?;
         if self.split.max_bytes.is_some() {
             let len = std::fs::metadata(&self.mcap_path)
-                .map_err(io(&self.mcap_path, "reading the size of"))?
+                .map_err(BagError::io(&self.mcap_path, "reading the size of"))?
                 .len();
             self.file_bytes = len;
         }
         self.write_metadata(&self.summary())
+    }
+
+    /// Log time of the bag's first message, if any.
+    fn first_ns(&self) -> Option<u64> {
+        self.files.iter().filter_map(|f| f.first_ns).min()
+    }
+
+    /// Log time of the bag's last message (0 if none).
+    fn last_ns(&self) -> u64 {
+        self.files.iter().map(|f| f.last_ns).max().unwrap_or(0)
     }
 
     fn open_file(&mut self) -> &mut FileStats {
@@ -492,11 +488,13 @@ impl BagWriter {
         };
         writer.finish().map_err(|e| self.mcap_err(e))?;
         let mut inner = writer.into_inner();
-        inner.flush().map_err(io(&self.mcap_path, "flushing"))?;
+        inner
+            .flush()
+            .map_err(BagError::io(&self.mcap_path, "flushing"))?;
         inner
             .get_ref()
             .sync_all()
-            .map_err(io(&self.mcap_path, "syncing"))
+            .map_err(BagError::io(&self.mcap_path, "syncing"))
     }
 
     /// What the bag holds so far.
@@ -511,7 +509,7 @@ impl BagWriter {
                 .iter()
                 .map(|(k, t)| (k.clone(), t.count))
                 .collect(),
-            duration_ns: self.last_ns.saturating_sub(self.first_ns.unwrap_or(0)),
+            duration_ns: self.last_ns().saturating_sub(self.first_ns().unwrap_or(0)),
         }
     }
 
@@ -533,7 +531,7 @@ impl BagWriter {
     }
 
     fn write_metadata(&self, summary: &BagSummary) -> Result<(), BagError> {
-        let start = self.first_ns.unwrap_or(0);
+        let start = self.first_ns().unwrap_or(0);
         let topics = self
             .topics
             .iter()

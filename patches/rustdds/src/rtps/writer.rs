@@ -841,11 +841,11 @@ impl Writer {
 
     // One trailing HEARTBEAT for the whole datagram (reliable writers only).
     if hb_reserve > 0 {
-      let final_flag = self.push_heartbeat(count as usize) == Piggyback::Final;
+      let final_flag = self.push_heartbeat(count as usize, last_seq) == Piggyback::Final;
       builder = builder.heartbeat_msg(
         self.entity_id(),
         self.send_buffer.first_change_sequence_number(),
-        self.send_buffer.last_change_sequence_number(),
+        last_seq,
         self.next_heartbeat_count(),
         self.endianness,
         EntityId::UNKNOWN, // to all readers
@@ -882,7 +882,9 @@ impl Writer {
   /// Built-in (discovery) writers ask every time, and so do writers under DDS
   /// Security: they skip a reader whose keys are still in flight and repair it
   /// when it ACKNACKs, which should not wait for the 16th sample.
-  fn push_heartbeat(&mut self, samples: usize) -> Piggyback {
+  /// `last` is the last sample this push puts on the wire, the one the
+  /// HEARTBEAT advertises.
+  fn push_heartbeat(&mut self, samples: usize, last: SequenceNumber) -> Piggyback {
     if !self.is_reliable() {
       return Piggyback::None;
     }
@@ -892,7 +894,6 @@ impl Writer {
     self.pushes_since_ack_request += samples;
     if self.pushes_since_ack_request >= ACK_REQUEST_EVERY_PUSHES {
       self.pushes_since_ack_request = 0;
-      let last = self.send_buffer.last_change_sequence_number();
       self.tail_probe.on_ack_request(std::time::Instant::now(), last);
       Piggyback::RequestAck
     } else {
@@ -1020,7 +1021,7 @@ impl Writer {
         // per sample is pure overhead (an extra submessage built and sent for
         // every DATA). Only reliable writers piggyback a heartbeat here;
         // best-effort skips it entirely.
-        let heartbeat = self.push_heartbeat(1);
+        let heartbeat = self.push_heartbeat(1, sequence_number);
         let (_fragmented, progress) = {
           let target_reader_opt = match write_options.to_single_reader() {
             Some(guid) => self.readers.get(&guid), // Sending only to this reader
@@ -1114,14 +1115,17 @@ impl Writer {
     }
   }
 
-  /// The last sequence number a HEARTBEAT may advertise. While a fragmented
-  /// sample is still being pushed (paced or blocked mid-way), it and later ones
-  /// are not advertised: a HEARTBEAT advertising a sample whose fragments are
-  /// still arriving made CycloneDDS acknowledge that sample at once, and it
-  /// then never delivered it (seen with paced multi-MB service replies).
+  /// The last sequence number a HEARTBEAT may advertise: the last one pushed.
+  /// While a fragmented sample is still being pushed (paced or blocked
+  /// mid-way), it and later ones are not advertised: a HEARTBEAT advertising a
+  /// sample whose fragments are still arriving made CycloneDDS acknowledge that
+  /// sample at once, and it then never delivered it (seen with paced multi-MB
+  /// service replies). Nor is a sample the application has written but the
+  /// event loop not yet pushed: a reader told of it before its DATA NACKs it
+  /// and receives it twice.
   fn advertised_last_sn(&self) -> SequenceNumber {
     let last = self.send_buffer.last_change_sequence_number();
-    if self.push_mode && self.sample_cursor != SampleCursor::Fresh {
+    if self.push_mode {
       last.min(self.last_sent)
     } else {
       last
@@ -1321,7 +1325,7 @@ impl Writer {
     } else {
       self
         .tail_probe
-        .on_ack_request(std::time::Instant::now(), last_change);
+        .on_ack_request(std::time::Instant::now(), self.advertised_last_sn());
       // the interface to .heartbeat_msg is silly: we give ref to ourself
       // and that function then queries us.
       let hb_message = MessageBuilder::new()
@@ -1396,6 +1400,7 @@ impl Writer {
       AckSubmessage::AckNack(ref an) => {
         // Update the ReaderProxy
         let last_seq = self.send_buffer.last_change_sequence_number(); // to avoid borrow problems
+        let advertised = self.advertised_last_sn();
 
         // sanity check requested sequence numbers
         if let Some(0) = an.reader_sn_state.iter().next().map(i64::from) {
@@ -1487,9 +1492,11 @@ impl Writer {
           }
         } // if have reader_proxy
         if let Some(acked_before) = acked_before {
-          self
-            .tail_probe
-            .on_ack(std::time::Instant::now(), acked_before);
+          self.tail_probe.on_ack(
+            std::time::Instant::now(),
+            acked_before,
+            an.reader_sn_state.iter().next().is_some(),
+          );
         }
 
         // Every Writer, built-in or user, answers after nack_response_delay
@@ -1528,14 +1535,18 @@ impl Writer {
           // everything means the reader does not know what we have, typically a
           // preemptive ACKNACK from a reader that matched us after our HEARTBEAT.
           // Answer now instead of at the next heartbeat period.
-          if an.reader_sn_state.iter().next().is_none() && reader_proxy.all_acked_before <= last_seq
+          // Only what has been sent is advertised: a sample the application
+          // has just written is on its way, and naming it before its DATA made
+          // the reader NACK it and receive it twice.
+          if an.reader_sn_state.iter().next().is_none()
+            && reader_proxy.all_acked_before <= advertised
           {
             let hb_message = MessageBuilder::new()
               .ts_msg(self.endianness, Some(Timestamp::now()))
               .heartbeat_msg(
                 self.entity_id(),
                 self.send_buffer.first_change_sequence_number(),
-                last_seq,
+                advertised,
                 self.next_heartbeat_count(),
                 self.endianness,
                 reader_guid.entity_id,
@@ -3399,6 +3410,41 @@ mod tests {
       assert!(next_tail_probe(&f, StdDuration::from_millis(50)).is_none(), "the timer is not set again");
     }
 
+    // A sample the application has written but the event loop has not yet
+    // pushed is not advertised: the answer to a probe's ACKNACK that named it
+    // reached the reader before its DATA, which the reader then NACKed and got
+    // twice (loss-free, about one probe in two ended so).
+    #[test]
+    fn a_sample_not_yet_pushed_is_not_advertised() {
+      let mut f = Fixture::user(1, 8, None);
+      let heartbeats = |f: &Fixture| f.writer.heartbeat_message_counter.load(atomic::Ordering::Relaxed);
+      let ack_nack = |f: &mut Fixture, base: i64, count: i32| {
+        let ack_nack = AckNack {
+          reader_id: f.reader_guid.entity_id,
+          writer_id: f.writer.my_guid.entity_id,
+          reader_sn_state: SequenceNumberSet::new_empty(SequenceNumber::new(base)),
+          count,
+        };
+        f.writer
+          .handle_ack_nack(f.reader_guid.prefix, &AckSubmessage::AckNack(ack_nack));
+      };
+      f.writer.process_pending();
+
+      // A reader that lacks a sent sample but asks for nothing is told at once.
+      let before = heartbeats(&f);
+      ack_nack(&mut f, 1, 1);
+      assert_eq!(heartbeats(&f), before + 1);
+
+      admit_sample(&f.writer.send_buffer, 8); // sample 2, not yet pushed
+      assert_eq!(f.writer.advertised_last_sn(), SequenceNumber::new(1));
+      // The reader has everything sent: nothing to tell it yet.
+      ack_nack(&mut f, 2, 2);
+      assert_eq!(heartbeats(&f), before + 1, "no HEARTBEAT names the unpushed sample");
+
+      f.writer.process_pending();
+      assert_eq!(f.writer.advertised_last_sn(), SequenceNumber::new(2));
+    }
+
     // A round stops once REPAIR_BATCH_MAX_BYTES have gone out and the next
     // round continues where it stopped.
     #[test]
@@ -3534,7 +3580,7 @@ mod tests {
         .unwrap();
       let mut finals = Vec::new();
       for _ in 0..samples {
-        let heartbeat = f.writer.push_heartbeat(1);
+        let heartbeat = f.writer.push_heartbeat(1, SequenceNumber::new(1));
         let messages: Vec<_> =
           FragmentationIter::new_resume(&f.writer, &cc, None, heartbeat, SampleCursor::Fresh)
             .collect();
@@ -3624,7 +3670,7 @@ mod tests {
         Box::new(AccessControlBuiltin::new()),
         Box::new(CryptographicBuiltin::new()),
       )));
-      assert!((0..40).all(|_| user.writer.push_heartbeat(1) == Piggyback::RequestAck));
+      assert!((0..40).all(|_| user.writer.push_heartbeat(1, SequenceNumber::new(1)) == Piggyback::RequestAck));
     }
 
     // A repeated ACKNACK count is a copy and changes nothing; a new count does.

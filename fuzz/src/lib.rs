@@ -13,13 +13,13 @@ use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use causal_arm_dataset::ActionSource;
+use causal_arm_models::serve::ModelSet;
 use causal_arm_msgs::srv::{
     GetModelInfo_Request, PredictAction_Request, PredictNextState_Request, Rollout_Request,
 };
 use causal_arm_msgs::{
     MessageTypeVisitor, RosMessage, cdr_to_json, from_cdr, to_cdr, visit_message_type,
 };
-use causal_arm_trainer::serve::ModelSet;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 

@@ -70,6 +70,10 @@ def ours(binary: pathlib.Path, steps: int, cap: float, reference: pathlib.Path, 
         from test_datagen import _canonical
 
         return steps / stepping_seconds(text), got, _canonical(out) == _canonical(reference)
+    # A cut or failed launch: keep what it said, for the record.
+    tail = "\n".join(text.splitlines()[-25:])
+    print(f"launch {'cut' if cut_at else f'failed (exit {launch.returncode})'}; its last lines:\n{tail}",
+          file=sys.stderr, flush=True)
     starts = [datetime.datetime.fromisoformat(s.replace("Z", "+00:00")) for s, w in SIM_LOG.findall(text)
               if w == "starting"]
     seconds = (cut_at - starts[0]).total_seconds() if starts and cut_at else float("nan")

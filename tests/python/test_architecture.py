@@ -11,9 +11,9 @@ import subprocess
 import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
-# The crates at the top of the graph, which may import nodes: the command line and the
-# fuzz harness (it feeds the trainer's service handlers).
-FRONT_ENDS = {"causal-arm", "causal_arm_fuzz"}
+# The crate at the top of the graph, which may import nodes: the command line (`launch` runs
+# the graph's nodes).
+FRONT_ENDS = {"causal-arm"}
 
 
 def short(name: str) -> str:
@@ -74,9 +74,25 @@ def cargo_tree(package: str) -> str:
                           cwd=REPO, capture_output=True, text=True, check=True).stdout
 
 
-@pytest.mark.parametrize("package", ["causal_arm_trainer", "causal_arm_explainer"])
+@pytest.mark.parametrize("package", ["causal_arm_trainer", "causal_arm_explainer", "causal_arm_models",
+                                     "causal_arm_explain"])
 def test_the_learning_nodes_build_no_physics(package):
     assert "rapier3d" not in cargo_tree(package)
+
+
+@pytest.mark.parametrize("package", ["causal_arm_models", "causal_arm_explain", "causal_arm_fuzz"])
+def test_the_learning_libraries_build_no_dds(package):
+    """The trainer and explainer nodes are thin mains around these: the CLI and the fuzz
+    harness use them without linking rustdds, ros2-client or OpenSSL."""
+    tree = cargo_tree(package)
+    assert not {"rustdds", "ros2-client", "openssl"} & {line.split(" ")[0] for line in tree.splitlines()}
+
+
+def test_the_node_crates_are_thin_mains():
+    """`nodes/trainer` and `nodes/explainer` hold one binary each and no library."""
+    for node in ("trainer", "explainer"):
+        src = REPO / "nodes" / node / "src"
+        assert sorted(f.name for f in src.rglob("*.rs")) == ["main.rs"], f"nodes/{node}"
 
 
 def test_the_babbler_builds_no_simulator():

@@ -5,18 +5,18 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
-use causal_arm_explainer::influence::{
+use causal_arm_explain::influence::{
     ErrorFloors, InfluenceSettings, Rule, agreement_effects, cai_effects, claims_by_context,
     holdout_effects,
 };
-use causal_arm_explainer::multistep;
-use causal_arm_explainer::output::{Written, write_all};
-use causal_arm_explainer::{
+use causal_arm_explain::multistep;
+use causal_arm_explain::output::{Written, write_all};
+use causal_arm_explain::{
     BackgroundKind, Explainer, Explanation, Method, Relevance, Settings, calibrated_relevance,
 };
+use causal_arm_models::load_model;
 use causal_arm_protocol::graph::server_default_text;
 use causal_arm_scoring::{EdgeClaims, Verdict};
-use causal_arm_trainer::load_model;
 use causal_arm_truth::{Truth, check_names, score_claims, score_table};
 use clap::Args;
 
@@ -313,7 +313,7 @@ fn draw_mental_simulation_if_run(
 ) -> anyhow::Result<()> {
     let mental = args.model.join("mental_simulation.json");
     if let Ok(text) = std::fs::read_to_string(&mental) {
-        let result: causal_arm_trainer::mental::MentalSimulation = serde_json::from_str(&text)
+        let result: causal_arm_models::mental::MentalSimulation = serde_json::from_str(&text)
             .with_context(|| format!("{}: not a mental simulation result", mental.display()))?;
         let stem = out.join("mental_simulation");
         crate::rollout_cmd::draw_mental_simulation(
@@ -350,14 +350,14 @@ fn list_written(written: &Written, out: &Path) {
 }
 
 /// The claims of a SHAP run, the default (`<method>+cai+data`) first: one piece of code with the
-/// explainer node ([`causal_arm_explainer::verdicts::shap_and_cai_claims`]).
+/// explainer node ([`causal_arm_explain::verdicts::shap_and_cai_claims`]).
 fn shap_and_cai_claims(
     args: &ExplainArgs,
     explainer: &Explainer,
     data: &Dataset,
-    explanation: &causal_arm_explainer::Explanation,
+    explanation: &causal_arm_explain::Explanation,
 ) -> anyhow::Result<Vec<EdgeClaims>> {
-    Ok(causal_arm_explainer::verdicts::shap_and_cai_claims(
+    Ok(causal_arm_explain::verdicts::shap_and_cai_claims(
         explainer,
         data,
         explanation,
@@ -616,7 +616,7 @@ fn write_multistep(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use causal_arm_explainer::report::DEFAULT_THRESHOLD;
+    use causal_arm_explain::report::DEFAULT_THRESHOLD;
     use clap::Parser;
 
     #[derive(Debug, Parser)]

@@ -5,9 +5,9 @@ use std::path::Path;
 
 use anyhow::{Context as _, bail};
 use causal_arm_control::{ForwardModel, InverseModel, next_state_indices};
+use causal_arm_models::serve::ModelSet;
 use causal_arm_msgs::srv::{GetModelInfo_Request, PredictAction_Request, PredictNextState_Request};
 use causal_arm_protocol::Experiment;
-use causal_arm_trainer::serve::ModelSet;
 
 /// The inverse model of a model directory. The IM may take only some next-state
 /// features (the paper's exp 1 IM takes ef(t+1) alone): `next` lists, in its input

@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use causal_arm_dataset::{ActionSource, Cache, load_bags};
+use causal_arm_models::load_model;
+use causal_arm_models::mental::{MentalSimulation, mental_simulation};
 use causal_arm_plots::{Curve, curves_with_error_bars};
-use causal_arm_trainer::load_model;
-use causal_arm_trainer::mental::{MentalSimulation, mental_simulation};
 use clap::Args;
 
 use crate::train_cmd::show;

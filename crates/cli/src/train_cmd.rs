@@ -6,12 +6,12 @@ use std::time::Instant;
 
 use anyhow::bail;
 use causal_arm_dataset::{ActionSource, Cache, CacheOutcome, Dataset, Experiment, load_bags};
+use causal_arm_models::fit::{Progress, ProgressLog};
+use causal_arm_models::job::{SavedRun, train_and_save};
+use causal_arm_models::problems::FmTarget;
+use causal_arm_models::structure::{Auxiliary, FoundGraph};
+use causal_arm_models::{Figure, LrSchedule, ModelKind, ModelRequest, Profile, TrainOptions};
 use causal_arm_protocol::graph::server_default_text;
-use causal_arm_trainer::fit::{Progress, ProgressLog};
-use causal_arm_trainer::job::{SavedRun, train_and_save};
-use causal_arm_trainer::problems::FmTarget;
-use causal_arm_trainer::structure::{Auxiliary, FoundGraph};
-use causal_arm_trainer::{Figure, LrSchedule, ModelKind, ModelRequest, Profile, TrainOptions};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 

@@ -10,8 +10,8 @@
 //!   a_j given the rest).
 
 use causal_arm_dataset::{Context, ContextReader, Dataset, angular_features, wrap_angle};
+use causal_arm_models::LoadedModel;
 use causal_arm_scoring::EdgeClaims;
-use causal_arm_trainer::LoadedModel;
 use rand::rngs::StdRng;
 use rand::seq::index::sample;
 use rand::{Rng, SeedableRng};

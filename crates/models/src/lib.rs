@@ -2,8 +2,9 @@
 //! from experiment datasets, judged by k-fold cross-validation next to the paper's figures
 //! and the predict-the-mean baseline, saved as safetensors + JSON model files.
 //!
-//! Node logic lives here without DDS; the `causal_arm_trainer` node serves loaded models
-//! as ROS 2 services, and `causal-arm train` drives [`cross_validate`] from the CLI.
+//! A library without DDS: the `causal_arm_trainer` node (`nodes/trainer`) serves loaded
+//! models as ROS 2 services through [`serve::ModelSet`], and `causal-arm train` drives
+//! [`cross_validate`] from the CLI.
 
 mod cv;
 mod error;

@@ -12,15 +12,15 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail};
 use causal_arm_dataset::{ActionSource, Cache, load_bags};
+use causal_arm_models::fit::ProgressLog;
+use causal_arm_models::job::train_and_save;
+use causal_arm_models::serve::ModelSet;
+use causal_arm_models::{ModelRequest, TrainOptions};
 use causal_arm_msgs::srv::{GetModelInfo, PredictAction, PredictNextState, Rollout};
 use causal_arm_node::replies::Replies;
 use causal_arm_node::run::{node_main, serve_until_stopped, stop_flag};
 use causal_arm_node::{RosArgs, RosNode, server_param_specs};
 use causal_arm_protocol::graph::server_default_text;
-use causal_arm_trainer::fit::ProgressLog;
-use causal_arm_trainer::job::train_and_save;
-use causal_arm_trainer::serve::ModelSet;
-use causal_arm_trainer::{ModelRequest, TrainOptions};
 use futures::FutureExt;
 
 /// Service names (relative names resolve in the node's namespace, as ROS does).

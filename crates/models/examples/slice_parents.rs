@@ -10,17 +10,17 @@
 //! 3. an ef head on its parents only (no a6) that also predicts θ0..θ5(t+1) as auxiliary
 //!    outputs, to see whether the full network's edge is the other head's supervision.
 //!
-//! `cargo run --release -p causal_arm_trainer --example slice_parents -- BAG [EPOCHS] [SEED] [aux]`
+//! `cargo run --release -p causal_arm_models --example slice_parents -- BAG [EPOCHS] [SEED] [aux]`
 //! (`aux`: experiment 3 only)
 
 use anyhow::{Context, bail};
 use causal_arm_dataset::{ActionSource, Cache, Experiment, load_bags};
 use causal_arm_mlp::{LrSchedule, Optimizer, TrainConfig};
-use causal_arm_trainer::fit::{
+use causal_arm_models::fit::{
     FitSettings, FitWatch, Progress, fit, folds, head_mae, predict, take_rows, training_rows,
 };
-use causal_arm_trainer::problems::{FmTarget, Problem, forward_model, theta_columns};
-use causal_arm_trainer::structure::reduce;
+use causal_arm_models::problems::{FmTarget, Problem, forward_model, theta_columns};
+use causal_arm_models::structure::reduce;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();

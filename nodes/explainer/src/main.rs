@@ -9,12 +9,13 @@ use std::time::{Instant, SystemTime};
 
 use anyhow::bail;
 use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
-use causal_arm_explainer::influence::InfluenceSettings;
-use causal_arm_explainer::serve::{ExplainService, relevance_msg};
-use causal_arm_explainer::verdicts::shap_and_cai_claims;
-use causal_arm_explainer::{
+use causal_arm_explain::influence::InfluenceSettings;
+use causal_arm_explain::serve::{ExplainService, relevance_msg};
+use causal_arm_explain::verdicts::shap_and_cai_claims;
+use causal_arm_explain::{
     Explainer, Method, Relevance, Settings, calibrated_relevance, forward_inputs,
 };
+use causal_arm_models::load_model;
 use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_msgs::msg::Relevance as RelevanceMsg;
 use causal_arm_msgs::srv::Explain;
@@ -22,7 +23,6 @@ use causal_arm_msgs::std_msgs::msg::Header;
 use causal_arm_node::replies::Replies;
 use causal_arm_node::run::{node_main, serve_until_stopped, stop_flag};
 use causal_arm_node::{Params, RosArgs, RosNode, qos, server_param_specs};
-use causal_arm_trainer::load_model;
 use futures::FutureExt;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;

@@ -6,7 +6,7 @@
 //! inputs and can only be guessed from s(t). Its mean |·| per joint is the error of an IM
 //! that recovers everything else perfectly and guesses 0 for it; set it beside the IM MAE.
 //!
-//! `cargo run --release -p causal_arm_trainer --example im_null_space -- BAG [ROWS]`
+//! `cargo run --release -p causal_arm_models --example im_null_space -- BAG [ROWS]`
 
 use anyhow::{Context, bail};
 use causal_arm_dataset::{ActionSource, Cache, Experiment, load_bags};

@@ -6,11 +6,11 @@ use causal_arm_scoring::Decision;
 use std::collections::HashMap;
 use std::sync::Mutex;
 
+use causal_arm_models::serve::check_batch;
 use causal_arm_msgs::msg::Relevance as RelevanceMsg;
 use causal_arm_msgs::srv::{Explain_Request, Explain_Response};
 use causal_arm_msgs::std_msgs::msg::Header;
 use causal_arm_shap::{Background, kmeans};
-use causal_arm_trainer::serve::check_batch;
 
 use crate::{Explainer, Method, Relevance, Settings};
 

@@ -3,16 +3,14 @@
 
 use causal_arm_datagen::{GenerateOptions, generate};
 use causal_arm_dataset::{ActionSource, Dataset, Experiment, from_bag};
-use causal_arm_explainer::output::write_all;
-use causal_arm_explainer::report::DEFAULT_THRESHOLD;
-use causal_arm_explainer::serve::{ExplainService, relevance_msg};
-use causal_arm_explainer::{Explainer, Method, Settings, forward_inputs, relevance};
+use causal_arm_explain::output::write_all;
+use causal_arm_explain::report::DEFAULT_THRESHOLD;
+use causal_arm_explain::serve::{ExplainService, relevance_msg};
+use causal_arm_explain::{Explainer, Method, Settings, forward_inputs, relevance};
+use causal_arm_models::model_file::describe;
+use causal_arm_models::{ModelKind, Profile, TrainOptions, cross_validate, load_model, save_model};
 use causal_arm_msgs::srv::Explain_Request;
 use causal_arm_protocol::RunPlan;
-use causal_arm_trainer::model_file::describe;
-use causal_arm_trainer::{
-    ModelKind, Profile, TrainOptions, cross_validate, load_model, save_model,
-};
 
 /// A fresh directory per call: the tests run in parallel threads of one process, so the
 /// process id alone would let one test overwrite the other's model while it loads.
@@ -246,7 +244,7 @@ fn bad_settings_and_mismatched_data_are_errors() {
     };
     assert!(error_with(&|s| s.samples = 0).contains("samples"));
     assert!(
-        error_with(&|s| s.background_kind = causal_arm_explainer::BackgroundKind::Kmeans)
+        error_with(&|s| s.background_kind = causal_arm_explain::BackgroundKind::Kmeans)
             .contains("equal weights")
     );
     let err = error_with(&|s| s.samples = data.rows());

@@ -4,12 +4,12 @@ use std::path::PathBuf;
 
 use causal_arm_datagen::{GenerateOptions, generate};
 use causal_arm_dataset::{ActionSource, Experiment, action_names, from_bag, state_names};
-use causal_arm_protocol::RunPlan;
-use causal_arm_trainer::model_file::describe;
-use causal_arm_trainer::structure::FoundGraph;
-use causal_arm_trainer::{
+use causal_arm_models::model_file::describe;
+use causal_arm_models::structure::FoundGraph;
+use causal_arm_models::{
     ModelKind, Profile, RunRecord, TrainOptions, cross_validate, load_model, save_model,
 };
+use causal_arm_protocol::RunPlan;
 
 fn dataset(experiment: Experiment, episodes: u64, steps: u64) -> causal_arm_dataset::Dataset {
     // Tests run in parallel threads of one process: each call gets its own directory.
@@ -91,7 +91,7 @@ fn exp1_models_beat_the_mean_baseline_and_files_round_trip() {
     }
     // Mental simulation: errors grow with the chained steps; too few windows is an error.
     let fresh = dataset(Experiment::Exp1, 1, 400);
-    let sim = causal_arm_trainer::mental::mental_simulation(&loaded, &fresh, 30, 10).unwrap();
+    let sim = causal_arm_models::mental::mental_simulation(&loaded, &fresh, 30, 10).unwrap();
     assert_eq!((sim.trajectories, sim.steps, sim.curves.len()), (30, 10, 2));
     let theta = &sim.curves[0];
     assert_eq!(theta.group, "theta");
@@ -100,7 +100,7 @@ fn exp1_models_beat_the_mean_baseline_and_files_round_trip() {
         "chained errors accumulate: {:?}",
         theta.mean
     );
-    let err = causal_arm_trainer::mental::mental_simulation(&loaded, &fresh, 100, 10)
+    let err = causal_arm_models::mental::mental_simulation(&loaded, &fresh, 100, 10)
         .unwrap_err()
         .to_string();
     assert!(err.contains("only 39 windows"), "{err}");
@@ -281,7 +281,7 @@ fn a_factored_head_no_better_than_the_full_fm_keeps_the_full_fms_head_bit_for_bi
     assert!(ef_runs.iter().all(|r| !r.selection.unwrap().chosen));
     // Nothing is unaffected under this graph, so `--model fm` with it is the full FM.
     let full = cross_validate(&data, ModelKind::Fm, &options, &mut |_| {}).unwrap();
-    let figure = |r: &causal_arm_trainer::KindReport, key: &str| {
+    let figure = |r: &causal_arm_models::KindReport, key: &str| {
         r.figures.iter().find(|f| f.key == key).unwrap().mean
     };
     assert_eq!(figure(&factored, "fm/ef"), figure(&full, "fm/ef"));

@@ -466,9 +466,9 @@ mod tests {
     use super::*;
     use causal_arm_dataset::Experiment;
     use causal_arm_mlp::{Head, MlpSpec, Regressor, TrainConfig};
-    use causal_arm_trainer::fit::FitSettings;
-    use causal_arm_trainer::problems::{FmTarget, forward_model};
-    use causal_arm_trainer::{LoadedModel, ModelMeta, ProblemInfo};
+    use causal_arm_models::fit::FitSettings;
+    use causal_arm_models::problems::{FmTarget, forward_model};
+    use causal_arm_models::{LoadedModel, ModelMeta, ProblemInfo};
     use safetensors::{Dtype, tensor::TensorView};
 
     const THETA0: usize = 9;

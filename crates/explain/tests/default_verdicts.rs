@@ -5,13 +5,13 @@
 
 use causal_arm_datagen::{GenerateOptions, generate};
 use causal_arm_dataset::{ActionSource, Dataset, Experiment, from_bag};
-use causal_arm_explainer::influence::InfluenceSettings;
-use causal_arm_explainer::verdicts::shap_and_cai_claims;
-use causal_arm_explainer::{Explainer, Method, Settings};
+use causal_arm_explain::influence::InfluenceSettings;
+use causal_arm_explain::verdicts::shap_and_cai_claims;
+use causal_arm_explain::{Explainer, Method, Settings};
+use causal_arm_models::job::train_and_save;
+use causal_arm_models::{ModelKind, Profile, TrainOptions, load_model};
 use causal_arm_protocol::RunPlan;
 use causal_arm_scoring::{EdgeClaims, Verdict};
-use causal_arm_trainer::job::train_and_save;
-use causal_arm_trainer::{ModelKind, Profile, TrainOptions, load_model};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};

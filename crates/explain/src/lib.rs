@@ -2,8 +2,8 @@
 //! (state s(t) and action a(t)) on its outputs s(t+1), aggregated into a heat map, partial
 //! dependence plots and a report of which state features the robot's actions can change.
 //!
-//! The library does the work; `causal-arm explain` and the `causal_arm_explainer` node are
-//! thin front ends. The explained function is the forward model's network with its offset
+//! The library does the work, without DDS; `causal-arm explain` and the
+//! `causal_arm_explainer` node (`nodes/explainer`) are thin front ends. The explained function is the forward model's network with its offset
 //! columns added (a delta model predicts s(t+1) − s(t)), in raw units, *without* wrapping
 //! Euler angles into (−π, π]: wrapping is a discontinuity whose attributions mean nothing.
 
@@ -20,11 +20,11 @@ pub mod verdicts;
 use std::time::Instant;
 
 use causal_arm_dataset::{Dataset, Experiment};
+use causal_arm_models::LoadedModel;
 use causal_arm_shap::{
     Attributions, Background, DeepModel, DeepOptions, KernelOptions, OBSERVATION_SEED_STRIDE,
     RegressorModel, ShapError, kernel_shap, kmeans,
 };
-use causal_arm_trainer::LoadedModel;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::index::sample;

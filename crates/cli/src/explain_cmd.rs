@@ -1,62 +1,17 @@
 //! `causal-arm explain`: SHAP attributions of a trained forward model on transitions from
 //! bags, with the heat map, partial dependence plots and relevance report.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::Context;
-use causal_arm_dataset::{ActionSource, Cache, Dataset, load_bags};
-use causal_arm_explain::influence::{
-    ErrorFloors, InfluenceSettings, Rule, agreement_effects, cai_effects, claims_by_context,
-    holdout_effects,
-};
-use causal_arm_explain::multistep;
-use causal_arm_explain::output::{Written, write_all};
-use causal_arm_explain::{
-    BackgroundKind, Explainer, Explanation, Method, Relevance, Settings, calibrated_relevance,
-};
-use causal_arm_models::load_model;
+use causal_arm_dataset::ActionSource;
+use causal_arm_explain::job::{ExplainMethod, ExplainRequest, Outcome, ShapOutcome};
+use causal_arm_explain::{BackgroundKind, multistep};
 use causal_arm_protocol::graph::server_default_text;
-use causal_arm_scoring::{EdgeClaims, Verdict};
-use causal_arm_truth::{Truth, check_names, score_claims, score_table};
+use causal_arm_truth::score_table;
 use clap::Args;
 
 use crate::choice::choice;
 use crate::progress::Counter;
-
-/// What `causal-arm explain` computes: a SHAP attribution, or an influence measure with
-/// its own decision rule.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ExplainMethod {
-    /// Deep SHAP (the paper's).
-    Deep,
-    /// Kernel SHAP.
-    Kernel,
-    /// Causal influence: spread of the prediction when one action is resampled.
-    Cai,
-    /// Signed influence reproduced across independently trained models.
-    Agreement,
-    /// Signed influence against a_j drawn given the rest of the state.
-    Holdout,
-}
-
-causal_arm_protocol::choice!(ExplainMethod, "SHAP method", [
-    ExplainMethod::Deep => "deep",
-    ExplainMethod::Kernel => "kernel",
-    ExplainMethod::Cai => "cai",
-    ExplainMethod::Agreement => "agreement",
-    ExplainMethod::Holdout => "holdout",
-]);
-
-impl ExplainMethod {
-    /// The SHAP method, or `None` for an influence method.
-    fn shap(self) -> Option<Method> {
-        match self {
-            Self::Deep => Some(Method::Deep),
-            Self::Kernel => Some(Method::Kernel),
-            Self::Cai | Self::Agreement | Self::Holdout => None,
-        }
-    }
-}
 
 /// The explainer node's default of a setting `explain` shares with it (its declaration in
 /// launch_scripts/graph.toml), so the command and the node cannot disagree. The method
@@ -144,133 +99,84 @@ pub struct ExplainArgs {
     cache: Option<PathBuf>,
 }
 
-/// The action source the model was trained with, as `causal-arm train` recorded it.
-fn trained_action_source(model_dir: &Path, name: &str) -> Option<String> {
-    let text = std::fs::read_to_string(model_dir.join("metrics.json")).ok()?;
-    let metrics: serde_json::Value = serde_json::from_str(&text).ok()?;
-    metrics["models"][name]["options"]["action"]
-        .as_str()
-        .map(str::to_owned)
-}
-
-/// Settings from the command line, checked.
-fn settings(args: &ExplainArgs) -> anyhow::Result<Settings> {
-    let method = args
-        .method
-        .shap()
-        .expect("influence methods take another path");
-    let mut settings = Settings::for_method(method);
-    settings.samples = args.samples;
-    if let Some(b) = args.background {
-        settings.background = b;
-    }
-    if let Some(kind) = args.background_kind {
-        settings.background_kind = kind;
-    }
-    settings.kernel_samples = args.kernel_samples;
-    settings.seed = args.seed;
-    settings.threads = args.threads;
-    if !(args.threshold.is_finite() && args.threshold > 0.0) {
-        anyhow::bail!(
-            "--threshold must be a positive number, got {}",
-            args.threshold
-        );
-    }
-    Ok(settings)
-}
-
-/// The model, its explainer and the data its observations come from; a `truth` that
-/// cannot score this model's claims is refused before any of them are computed.
-fn load(args: &ExplainArgs, truth: Option<&Truth>) -> anyhow::Result<(Explainer, Dataset)> {
-    let model = load_model(&args.model, &args.name)?;
-    let explainer = Explainer::new(model)?;
-    if let Some(truth) = truth {
-        check_names(
-            truth,
-            &args.method.to_string(),
-            explainer.action_names(),
-            explainer.state_names(),
-        )?;
-    }
-    let action = match args.action {
-        Some(action) => action,
-        None => trained_action_source(&args.model, &args.name)
-            .map_or(Ok(ActionSource::Realized), |text| text.parse())
-            .map_err(anyhow::Error::msg)?,
-    };
-    let cache = Cache::new(args.cache.clone().unwrap_or_else(Cache::default_dir));
-    let (data, _) = load_bags(
-        &args.bags,
-        Some(explainer.experiment()),
-        action,
-        Some(&cache),
-    )?;
-    Ok((explainer, data))
-}
-
-fn influence_settings(args: &ExplainArgs) -> InfluenceSettings {
-    InfluenceSettings {
-        observations: args.samples,
-        resamples: args.resamples,
-        kappa: args.kappa,
-        seed: args.seed,
-        ..InfluenceSettings::default()
+impl ExplainArgs {
+    /// The job these arguments ask for.
+    fn request(&self) -> ExplainRequest {
+        ExplainRequest {
+            model: self.model.clone(),
+            name: self.name.clone(),
+            bags: self.bags.clone(),
+            method: self.method,
+            samples: self.samples,
+            background: self.background,
+            background_kind: self.background_kind,
+            kernel_samples: self.kernel_samples,
+            threshold: self.threshold,
+            action: self.action,
+            seed: self.seed,
+            threads: self.threads,
+            pair_plots: !self.no_pair_plots,
+            also_models: self.also_models.clone(),
+            truth: self.truth.clone(),
+            kappa: self.kappa,
+            resamples: self.resamples,
+            horizon: self.horizon,
+            out: None,
+            cache: self.cache.clone(),
+        }
     }
 }
 
-/// Runs `causal-arm explain`.
+/// Runs `causal-arm explain`: the library's one explain job, then what it found on stdout.
 pub fn run(args: &ExplainArgs) -> anyhow::Result<()> {
-    // A bad truth file is refused before minutes of attribution.
-    let truth = args
-        .truth
-        .as_deref()
-        .map(causal_arm_truth::load)
-        .transpose()?;
-    if let Some(horizon) = args.horizon {
-        return run_multistep(args, truth.as_ref(), horizon);
+    let mut request = args.request();
+    request.out = Some(args.out.clone().unwrap_or_else(|| request.default_out()));
+    let mut counter: Option<Counter> = None;
+    let outcome = causal_arm_explain::run(&request, &mut |done, total| {
+        counter
+            .get_or_insert_with(|| Counter::new(total as u64, "SHAP", "observations"))
+            .set(done as u64)
+    })?;
+    if let Some(counter) = counter {
+        counter.finish();
     }
-    if args.method.shap().is_none() {
-        return run_influence(args, truth.as_ref());
-    }
-    let settings = settings(args)?;
-    let (explainer, data) = load(args, truth.as_ref())?;
-    let mut counter = Counter::new(
-        settings.samples as u64,
-        &format!("{} SHAP", settings.method),
-        "observations",
-    );
-    let explanation =
-        explainer.explain_dataset(&data, &settings, &mut |done, _| counter.set(done as u64))?;
-    counter.finish();
-    let claims = shap_and_cai_claims(args, &explainer, &data, &explanation)?;
-    let report = calibrated_relevance(&explanation, args.threshold, &claims)?;
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| args.model.join(format!("explain-{}", settings.method)));
-    let written = write_all(&out, &explanation, &report, !args.no_pair_plots)
-        .with_context(|| format!("cannot write the explanation into {}", out.display()))?;
-    finish_claims(args, &out, &claims, truth.as_ref())?;
-    print_relevance(args, &settings, &explanation, &report);
-    draw_mental_simulation_if_run(args, &out, &explanation)?;
-    list_written(&written, &out);
+    print_outcome(&request, &outcome);
+    list_written(&outcome.written);
     Ok(())
 }
 
-/// The run in one line, then every state feature's verdict and what drives it: the
-/// knowledge extracted, on stdout.
-fn print_relevance(
-    args: &ExplainArgs,
-    settings: &Settings,
-    explanation: &Explanation,
-    report: &Relevance,
-) {
+/// What the job found: the run in one line, the verdicts, and the scores with a truth.
+fn print_outcome(request: &ExplainRequest, outcome: &Outcome) {
+    if let Some(shap) = &outcome.shap {
+        print_relevance(request, shap);
+    }
+    if let Some(influence) = &outcome.influence {
+        println!(
+            "{} {} influence of {}/{}: {} observations × {} resamples per action in {:.2} s",
+            outcome.explainer.experiment(),
+            request.method,
+            request.model.display(),
+            request.name,
+            influence.observations,
+            request.resamples,
+            influence.seconds
+        );
+    }
+    match &outcome.multistep {
+        Some(result) => print_multistep(request, outcome, result),
+        None => print_claims(request, outcome),
+    }
+}
+
+/// Every state feature's verdict and what drives it: the knowledge extracted.
+fn print_relevance(request: &ExplainRequest, shap: &ShapOutcome) {
+    let (explanation, report) = (&shap.explanation, &shap.report);
     println!(
         "{} {} SHAP of {}/{}: {} observations × {} background rows in {:.2} s (efficiency error {:.1e})",
         explanation.experiment,
-        settings.method,
-        args.model.display(),
-        args.name,
+        shap.settings.method,
+        request.model.display(),
+        request.name,
         explanation.attributions.n_obs,
         explanation.background.rows(),
         explanation.seconds,
@@ -304,164 +210,10 @@ fn print_relevance(
     }
 }
 
-/// The mental-simulation figure, if `causal-arm rollout` was run on this model, so the
-/// explanation directory holds every figure of the paper for it.
-fn draw_mental_simulation_if_run(
-    args: &ExplainArgs,
-    out: &Path,
-    explanation: &Explanation,
-) -> anyhow::Result<()> {
-    let mental = args.model.join("mental_simulation.json");
-    if let Ok(text) = std::fs::read_to_string(&mental) {
-        let result: causal_arm_models::mental::MentalSimulation = serde_json::from_str(&text)
-            .with_context(|| format!("{}: not a mental simulation result", mental.display()))?;
-        let stem = out.join("mental_simulation");
-        crate::rollout_cmd::draw_mental_simulation(
-            &stem,
-            &result,
-            &explanation.experiment.to_string(),
-        )?;
-        eprintln!("wrote {}.png and {}.svg", stem.display(), stem.display());
-    }
-    Ok(())
-}
-
-/// The files written, the per-pair PDPs counted rather than listed (there are
-/// actions × states of them).
-fn list_written(written: &Written, out: &Path) {
-    let pairs = written
-        .files
-        .iter()
-        .filter(|p| p.parent().is_some_and(|d| d.ends_with("pdp")))
-        .count();
-    for f in written
-        .files
-        .iter()
-        .filter(|p| !p.parent().is_some_and(|d| d.ends_with("pdp")))
-    {
-        eprintln!("wrote {}", f.display());
-    }
-    if pairs > 0 {
-        eprintln!(
-            "wrote {pairs} per-pair PDP files into {}",
-            out.join("pdp").display()
-        );
-    }
-}
-
-/// The claims of a SHAP run, the default (`<method>+cai+data`) first: one piece of code with the
-/// explainer node ([`causal_arm_explain::verdicts::shap_and_cai_claims`]).
-fn shap_and_cai_claims(
-    args: &ExplainArgs,
-    explainer: &Explainer,
-    data: &Dataset,
-    explanation: &causal_arm_explain::Explanation,
-) -> anyhow::Result<Vec<EdgeClaims>> {
-    Ok(causal_arm_explain::verdicts::shap_and_cai_claims(
-        explainer,
-        data,
-        explanation,
-        args.threshold,
-        &influence_settings(args),
-    )?)
-}
-
-/// A heat map of `claims`' verdicts: 1 drives, 0 does not, and undecided in a colour of its
-/// own (0.5), so an honest "don't know" never looks like either answer.
-fn draw_verdicts(stem: &Path, claims: &EdgeClaims) -> anyhow::Result<()> {
-    let (na, ns) = (claims.action_names.len(), claims.state_names.len());
-    let values: Vec<f64> = (0..na * ns)
-        .map(|i| match claims.verdict(i / ns, i % ns) {
-            Verdict::Drives => 1.0,
-            Verdict::Undecided => 0.5,
-            Verdict::DoesNot => 0.0,
-        })
-        .collect();
-    let legend = if claims.decisions.is_some() {
-        "1 = drives, 0.5 = undecided, 0 = does not"
-    } else {
-        "1 = claimed"
-    };
-    causal_arm_plots::heatmap(
-        stem,
-        &format!(
-            "{}: which action drives which s(t+1) ({legend})",
-            claims.method
-        ),
-        &claims.action_names,
-        &claims.state_names,
-        &values,
-        "claimed",
-        causal_arm_plots::HeatmapScale::Linear,
-    )?;
-    eprintln!("wrote {}.png and {}.svg", stem.display(), stem.display());
-    Ok(())
-}
-
-/// `causal-arm explain --method cai|agreement`: influence of every action on the forward
-/// model(s), with verdicts by the method's rule.
-fn run_influence(args: &ExplainArgs, truth: Option<&Truth>) -> anyhow::Result<()> {
-    let (explainer, data) = load(args, truth)?;
-    let settings = influence_settings(args);
-    let started = std::time::Instant::now();
-    let (effects, claims) = if args.method == ExplainMethod::Cai {
-        let effects = cai_effects(&explainer, &data, &settings)?;
-        let floors = ErrorFloors::measure(&explainer, &data, &settings)?;
-        let claims = claims_by_context(
-            &explainer,
-            &data,
-            &effects,
-            &settings,
-            Rule::ErrorRatio(&floors),
-        );
-        (effects, claims)
-    } else if args.method == ExplainMethod::Holdout {
-        let effects = holdout_effects(&explainer, &data, &settings)?;
-        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::Significance);
-        (effects, claims)
-    } else {
-        let mut others = Vec::new();
-        for dir in &args.also_models {
-            others.push(Explainer::new(load_model(dir, &args.name)?)?);
-        }
-        let mut all = vec![&explainer];
-        all.extend(others.iter());
-        let effects = agreement_effects(&all, &data, &settings)?;
-        let claims = claims_by_context(&explainer, &data, &effects, &settings, Rule::Significance);
-        (effects, claims)
-    };
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| args.model.join(format!("explain-{}", args.method)));
-    println!(
-        "{} {} influence of {}/{}: {} observations × {} resamples per action in {:.2} s",
-        explainer.experiment(),
-        args.method,
-        args.model.display(),
-        args.name,
-        effects.rows.len(),
-        settings.resamples,
-        started.elapsed().as_secs_f64()
-    );
-    finish_claims(args, &out, &claims, truth)
-}
-
-/// Writes `claims.json`, prints what the default claims say and, with `--truth`, scores
-/// every claim set against it (`scores.json`).
-fn finish_claims(
-    args: &ExplainArgs,
-    out: &Path,
-    claims: &[EdgeClaims],
-    truth: Option<&Truth>,
-) -> anyhow::Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let path = out.join("claims.json");
-    std::fs::write(&path, serde_json::to_string_pretty(claims)?)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    eprintln!("wrote {}", path.display());
-    // The first claim set of a run is its default.
-    if let Some(headline) = claims.iter().find(|c| c.context == "all") {
+/// The default claims (the first of context `all`), their verdict counts and, with a
+/// truth, every claim set's scores over all states or all pairs.
+fn print_claims(request: &ExplainRequest, outcome: &Outcome) {
+    if let Some(headline) = outcome.claims.iter().find(|c| c.context == "all") {
         for (a, action) in headline.action_names.iter().enumerate() {
             let driven: Vec<&str> = headline
                 .state_names
@@ -482,82 +234,32 @@ fn finish_claims(
             headline.method
         );
     }
-    // The default claims as verdicts_heatmap, every method's all-states claims beside it.
-    let all_states = claims
-        .iter()
-        .filter(|c| c.context == "all" && c.horizon == 1);
-    for (i, c) in all_states.enumerate() {
-        let file = match i {
-            0 => "verdicts_heatmap".to_owned(),
-            _ => format!("verdicts_{}", c.method.replace(['/', '+'], "_")),
-        };
-        draw_verdicts(&out.join(file), c)?;
+    if let Some(truth) = &request.truth {
+        println!(
+            "scored against {} (blocks over all states, contexts over all pairs; every row in scores.json):",
+            truth.display()
+        );
+        let shown: Vec<_> = (outcome.scores.iter())
+            .filter(|r| r.context == "all" || r.block == "all")
+            .cloned()
+            .collect();
+        print!("{}", score_table(&shown));
     }
-    let (Some(truth), Some(truth_path)) = (truth, &args.truth) else {
-        return Ok(());
-    };
-    let mut rows = Vec::new();
-    for c in claims {
-        rows.extend(score_claims(truth, c)?);
-    }
-    println!(
-        "scored against {} ({} states; blocks over all states, contexts over all pairs; every row in scores.json):",
-        truth_path.display(),
-        truth.one_step().states
-    );
-    let shown: Vec<_> = rows
-        .iter()
-        .filter(|r| r.context == "all" || r.block == "all")
-        .cloned()
-        .collect();
-    print!("{}", score_table(&shown));
-    let path = out.join("scores.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&rows)?)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    eprintln!("wrote {}", path.display());
-    Ok(())
 }
 
-/// `causal-arm explain --method cai --horizon K`: CAI through the forward model chained K
-/// steps, verdicts per horizon and context, scored against the truth's matrix at each
-/// horizon; a horizon the truth lacks is refused before any chaining.
-fn run_multistep(args: &ExplainArgs, truth: Option<&Truth>, horizon: usize) -> anyhow::Result<()> {
-    if args.method != ExplainMethod::Cai {
-        anyhow::bail!(
-            "--horizon attributes through the chained forward model with CAI; use it with --method cai, not {:?}",
-            args.method.to_string()
-        );
-    }
-    multistep::check_horizon(horizon)?;
-    if let Some(truth) = truth {
-        causal_arm_truth::check_horizon(truth, horizon)?;
-        for h in 1..horizon {
-            causal_arm_truth::check_horizon(truth, h)?;
-        }
-    }
-    let (explainer, data) = load(args, truth)?;
-    let settings = influence_settings(args);
-    let result = multistep::multistep_cai(&explainer, &data, &settings, horizon)?;
+/// Per horizon the verdict counts, the scores with a truth, and the magnet pair's line.
+fn print_multistep(request: &ExplainRequest, outcome: &Outcome, result: &multistep::MultiStep) {
     println!(
-        "{} cai through the FM chained {horizon} steps ({}/{}): {} observations × {} resamples per action, {} chainable rows, {:.2} s",
-        explainer.experiment(),
-        args.model.display(),
-        args.name,
+        "{} cai through the FM chained {} steps ({}/{}): {} observations × {} resamples per action, {} chainable rows, {:.2} s",
+        outcome.explainer.experiment(),
+        result.horizon,
+        request.model.display(),
+        request.name,
         result.observations,
-        settings.resamples,
+        request.resamples,
         result.chainable_rows,
         result.seconds
     );
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| args.model.join(format!("explain-cai-h{horizon}")));
-    let claims: Vec<EdgeClaims> = result.claims().cloned().collect();
-    let rows = match truth {
-        Some(truth) => causal_arm_truth::score_horizons(truth, &claims)?,
-        None => Vec::new(),
-    };
-    write_multistep(&out, &result, &rows)?;
     for h in &result.horizons {
         let (drives, does_not, undecided) = h.default.verdict_counts();
         let (data_drives, ..) = h.data.verdict_counts();
@@ -567,14 +269,12 @@ fn run_multistep(args: &ExplainArgs, truth: Option<&Truth>, horizon: usize) -> a
             multistep::DEFAULT_METHOD
         );
     }
-    if let (Some(truth), Some(path)) = (truth, &args.truth) {
+    if let Some(truth) = &request.truth {
         println!(
-            "scored against {} ({} states) per horizon, all states and all pairs (per block and context in multistep.json):",
-            path.display(),
-            truth.one_step().states
+            "scored against {} per horizon, all states and all pairs (per block and context in multistep.json):",
+            truth.display()
         );
-        let shown: Vec<_> = rows
-            .iter()
+        let shown: Vec<_> = (outcome.scores.iter())
             .filter(|r| r.context == "all" && r.block == "all")
             .cloned()
             .collect();
@@ -584,38 +284,29 @@ fn run_multistep(args: &ExplainArgs, truth: Option<&Truth>, horizon: usize) -> a
     if let Some(line) = result.pair_line(action, state) {
         println!("{line}");
     }
-    Ok(())
 }
 
-/// Writes `multistep.json` (per horizon: effects, error floors, verdicts and, with a truth,
-/// their scores) and the figures into `out`.
-fn write_multistep(
-    out: &Path,
-    result: &multistep::MultiStep,
-    rows: &[causal_arm_truth::ScoreRow],
-) -> anyhow::Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let mut json = serde_json::to_value(result)?;
-    if let Some(horizons) = json["horizons"].as_array_mut() {
-        for h in horizons {
-            let k = h["horizon"].as_u64().unwrap_or(0) as usize;
-            let scores: Vec<_> = rows.iter().filter(|r| r.horizon == k).collect();
-            h["scores"] = serde_json::to_value(scores)?;
-        }
+/// The files written, the per-pair PDPs counted rather than listed (there are
+/// actions × states of them).
+fn list_written(written: &[PathBuf]) {
+    let in_pdp = |p: &&PathBuf| p.parent().is_some_and(|d| d.ends_with("pdp"));
+    for f in written.iter().filter(|p| !in_pdp(p)) {
+        eprintln!("wrote {}", f.display());
     }
-    let path = out.join("multistep.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&json)?)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    eprintln!("wrote {}", path.display());
-    for png in multistep::draw_figures(result, out)? {
-        eprintln!("wrote {} and .svg", png.display());
+    let pairs: Vec<&PathBuf> = written.iter().filter(in_pdp).collect();
+    if let Some(first) = pairs.first() {
+        eprintln!(
+            "wrote {} per-pair PDP files into {}",
+            pairs.len(),
+            first.parent().unwrap_or(first).display()
+        );
     }
-    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use causal_arm_explain::influence::InfluenceSettings;
     use causal_arm_explain::report::DEFAULT_THRESHOLD;
     use clap::Parser;
 

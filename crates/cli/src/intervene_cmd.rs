@@ -3,8 +3,9 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use causal_arm_intervene::intervene;
 use causal_arm_protocol::Experiment;
-use causal_arm_truth::{Edge, Plan, intervene, write_all};
+use causal_arm_truth::{Edge, Plan, write_all};
 use clap::Args;
 
 use crate::choice::choice;

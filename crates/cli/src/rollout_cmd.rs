@@ -5,8 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use causal_arm_dataset::{ActionSource, Cache, load_bags};
 use causal_arm_models::load_model;
-use causal_arm_models::mental::{MentalSimulation, mental_simulation};
-use causal_arm_plots::{Curve, curves_with_error_bars};
+use causal_arm_models::mental::mental_simulation;
 use clap::Args;
 
 use crate::train_cmd::show;
@@ -59,7 +58,7 @@ pub fn run(args: &RolloutArgs) -> anyhow::Result<()> {
     std::fs::write(&json, serde_json::to_string_pretty(&result)? + "\n")
         .with_context(|| format!("cannot write {}", json.display()))?;
     let stem = out.join("mental_simulation");
-    draw_mental_simulation(&stem, &result, &experiment.to_string())?;
+    causal_arm_explain::output::draw_mental_simulation(&stem, &result, &experiment.to_string())?;
     println!(
         "{experiment} mental simulation, {} trajectories of {} steps:",
         result.trajectories, result.steps
@@ -85,40 +84,5 @@ pub fn run(args: &RolloutArgs) -> anyhow::Result<()> {
         stem.display(),
         stem.display()
     );
-    Ok(())
-}
-
-/// The mental-simulation figure (θ and ef MAE per step, mean ± std, log scale) at
-/// `stem.{png,svg}`; also redrawn by `causal-arm explain` beside the SHAP figures.
-pub(crate) fn draw_mental_simulation(
-    stem: &std::path::Path,
-    result: &MentalSimulation,
-    experiment: &str,
-) -> anyhow::Result<()> {
-    let plotted: Vec<Curve> = result
-        .curves
-        .iter()
-        .filter(|c| c.group == "theta" || c.group == "ef" || c.group == "ef_pos")
-        .map(|c| Curve {
-            label: format!("{} [{}]", c.group, c.unit),
-            points: c
-                .mean
-                .iter()
-                .zip(&c.std)
-                .enumerate()
-                .map(|(k, (&m, &s))| ((k + 1) as f64, m, s))
-                .collect(),
-        })
-        .collect();
-    curves_with_error_bars(
-        stem,
-        &format!(
-            "{experiment} mental simulation: FM chained over {} trajectories",
-            result.trajectories
-        ),
-        "step",
-        "MAE (mean ± std)",
-        &plotted,
-    )?;
     Ok(())
 }

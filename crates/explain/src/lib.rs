@@ -11,6 +11,7 @@
 
 pub mod decide;
 pub mod influence;
+pub mod job;
 pub mod multistep;
 pub mod output;
 pub mod report;
@@ -29,6 +30,7 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::index::sample;
 
+pub use job::{ExplainMethod, ExplainRequest, Outcome, run};
 pub use report::{Relevance, calibrated_relevance, relevance};
 
 /// Why an explanation could not be made; every bad input is reported, never a panic.
@@ -54,6 +56,15 @@ pub enum ExplainError {
     /// A figure could not be drawn.
     #[error(transparent)]
     Plot(#[from] causal_arm_plots::PlotError),
+    /// The model could not be loaded.
+    #[error(transparent)]
+    Model(#[from] causal_arm_models::TrainError),
+    /// The bags could not be read.
+    #[error(transparent)]
+    Data(#[from] causal_arm_dataset::DatasetError),
+    /// The truth could not be read or does not fit the model.
+    #[error(transparent)]
+    Truth(#[from] causal_arm_truth::TruthError),
 }
 
 /// Result alias of this crate.

@@ -6,13 +6,16 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use causal_arm_plots::{HeatmapScale, Scatter, heatmap, scatter, scatter_grid};
+use causal_arm_models::mental::MentalSimulation;
+use causal_arm_plots::{
+    Curve, HeatmapScale, Scatter, curves_with_error_bars, heatmap, scatter, scatter_grid,
+};
 use safetensors::{Dtype, tensor::TensorView};
 use serde_json::json;
 
 use crate::{ExplainError, Explanation, Relevance, Result};
 
-fn file_err(path: &Path, problem: impl std::fmt::Display) -> ExplainError {
+pub(crate) fn file_err(path: &Path, problem: impl std::fmt::Display) -> ExplainError {
     ExplainError::File {
         path: path.display().to_string(),
         problem: problem.to_string(),
@@ -26,6 +29,12 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let mut file = atomic_write_file::AtomicWriteFile::open(path).map_err(|e| file_err(path, e))?;
     file.write_all(bytes).map_err(|e| file_err(path, e))?;
     file.commit().map_err(|e| file_err(path, e))
+}
+
+/// Writes `value` as pretty JSON (and a newline) to `path`, atomically.
+pub(crate) fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| file_err(path, e))? + "\n";
+    write_atomic(path, text.as_bytes())
 }
 
 fn le_bytes_f64(values: &[f64]) -> Vec<u8> {
@@ -321,4 +330,39 @@ fn grid_pairs(relevance: &Relevance) -> Vec<(usize, usize)> {
         }
     }
     pairs
+}
+
+/// The mental-simulation figure (θ and ef MAE per step, mean ± std, log scale) at
+/// `stem.{png,svg}`; also redrawn by `causal-arm explain` beside the SHAP figures.
+pub fn draw_mental_simulation(
+    stem: &std::path::Path,
+    result: &MentalSimulation,
+    experiment: &str,
+) -> Result<()> {
+    let plotted: Vec<Curve> = result
+        .curves
+        .iter()
+        .filter(|c| c.group == "theta" || c.group == "ef" || c.group == "ef_pos")
+        .map(|c| Curve {
+            label: format!("{} [{}]", c.group, c.unit),
+            points: c
+                .mean
+                .iter()
+                .zip(&c.std)
+                .enumerate()
+                .map(|(k, (&m, &s))| ((k + 1) as f64, m, s))
+                .collect(),
+        })
+        .collect();
+    curves_with_error_bars(
+        stem,
+        &format!(
+            "{experiment} mental simulation: FM chained over {} trajectories",
+            result.trajectories
+        ),
+        "step",
+        "MAE (mean ± std)",
+        &plotted,
+    )?;
+    Ok(())
 }

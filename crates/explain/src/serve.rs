@@ -12,7 +12,12 @@ use causal_arm_msgs::srv::{Explain_Request, Explain_Response};
 use causal_arm_msgs::std_msgs::msg::Header;
 use causal_arm_shap::{Background, kmeans};
 
-use crate::{Explainer, Method, Relevance, Settings};
+use causal_arm_dataset::Dataset;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand::seq::SliceRandom;
+
+use crate::{Explainer, Method, Relevance, Settings, forward_inputs};
 
 /// Most rows one Deep SHAP request may carry (≈ 5 ms per row against 100 references on the
 /// exp2 FM, so a full request stays within a few seconds).
@@ -21,6 +26,8 @@ pub const MAX_DEEP_ROWS: usize = 1000;
 pub const MAX_KERNEL_ROWS: usize = 50;
 /// Most background rows a request may ask for.
 pub const MAX_BACKGROUND: usize = 1000;
+/// Rows of the data kept as the background pool (a uniform sample).
+pub const POOL_ROWS: usize = 20_000;
 
 /// The explainer node's state: model, background pool and default settings.
 pub struct ExplainService {
@@ -53,6 +60,22 @@ impl ExplainService {
             kernel,
             kmeans: Mutex::new(HashMap::new()),
         }
+    }
+
+    /// Serves `explainer` with backgrounds drawn from a seeded uniform sample of `data`'s
+    /// transitions (at most [`POOL_ROWS`]), and each method's default settings with `seed`.
+    pub fn on_data(explainer: Explainer, data: &Dataset, seed: u64) -> Self {
+        let mut rows: Vec<usize> = (0..data.rows()).collect();
+        rows.shuffle(&mut StdRng::seed_from_u64(seed));
+        rows.truncate(POOL_ROWS);
+        let pool = forward_inputs(data, &rows);
+        let (mut deep, mut kernel) = (
+            Settings::for_method(Method::Deep),
+            Settings::for_method(Method::Kernel),
+        );
+        deep.seed = seed;
+        kernel.seed = seed;
+        Self::new(explainer, pool, deep, kernel)
     }
 
     /// The explainer behind the service.

@@ -318,6 +318,12 @@ pub fn node_default_text(node: &str, param: &str) -> &'static str {
     default_text(node, param)
 }
 
+/// The embedded graph's range of numeric parameter `param` of serving node `server`, so a
+/// library checks a setting against the bounds the node declares (`None`: no range).
+pub fn server_param_range(server: &str, param: &str) -> Option<[f64; 2]> {
+    graph().ok()?.server_param(server, param)?.range
+}
+
 /// Owner of the run parameters in the table of [`default_text`] (no node has this name).
 const RUN: &str = "";
 

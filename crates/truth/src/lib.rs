@@ -1,4 +1,6 @@
-//! Causal ground truth from the simulator itself.
+//! Causal ground truth from the simulator itself: its format, files and the scores of
+//! claims against it. The interventions that make it run in `causal_arm_intervene`; this
+//! crate builds no physics, so the learning libraries score against a truth without it.
 //!
 //! Every causal claim of the project (an action a_j drives the next-state feature s_k) is
 //! scored against what the simulator does under intervention: take a state the bag visited
@@ -16,22 +18,18 @@
 
 #![warn(missing_docs)]
 
-mod engine;
 mod output;
 mod score;
-mod trace;
 
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
 pub use causal_arm_dataset::Context;
-pub use engine::intervene;
 pub use output::{load, write_all};
 pub use score::{
     ScoreRow, check_horizon, check_names, score_claims, score_horizons, score_table, truth_horizons,
 };
-pub use trace::{Trace, TraceStep};
 
 /// Why a ground truth could not be made or read.
 #[derive(Debug, thiserror::Error)]
@@ -39,20 +37,6 @@ pub enum TruthError {
     /// An option is out of range.
     #[error("{0}")]
     Options(String),
-    /// The bag cannot be re-simulated (wrong experiment, missing settings, bad messages).
-    #[error("{bag}: {problem}")]
-    Bag {
-        /// Bag directory.
-        bag: PathBuf,
-        /// What is wrong.
-        problem: String,
-    },
-    /// The bag could not be read.
-    #[error(transparent)]
-    Read(#[from] causal_arm_bag::BagError),
-    /// The simulator refused its settings or a command.
-    #[error(transparent)]
-    Sim(#[from] causal_arm_sim::SimError),
     /// A truth file is malformed or does not fit what it is compared with.
     #[error("{path}: {problem}")]
     File {

@@ -309,26 +309,39 @@ fn cai_effects_at(
 
 pub(crate) fn check(settings: &InfluenceSettings, rows: usize) -> Result<()> {
     let bad = |m: String| Err(ExplainError::Options(m));
-    if settings.observations == 0 || settings.resamples < 2 || settings.bootstrap == 0 {
-        return bad(format!(
-            "influence needs at least 1 observation, 2 resamples and 1 bootstrap draw, got {}, {}, {}",
-            settings.observations, settings.resamples, settings.bootstrap
-        ));
-    }
     if settings.observations > rows {
         return bad(format!(
             "the data has {rows} transitions; {} observations need more",
             settings.observations
         ));
     }
-    if !(settings.kappa.is_finite() && settings.kappa >= 0.0) {
-        return bad(format!(
-            "kappa must be a non-negative number, got {}",
-            settings.kappa
-        ));
-    }
-    Ok(())
+    settings.validate()
 }
+
+impl InfluenceSettings {
+    /// Checks the settings a user gives (κ within the range the explainer node declares in
+    /// launch_scripts/graph.toml): the one check of the CLI, the node and the library.
+    pub fn validate(&self) -> Result<()> {
+        let [low, high] = causal_arm_protocol::graph::server_param_range(KAPPA_OWNER, "kappa")
+            .unwrap_or([0.0, f64::MAX]);
+        if !(self.kappa.is_finite() && self.kappa >= low && self.kappa <= high) {
+            return Err(ExplainError::Options(format!(
+                "kappa must lie in [{low:e}, {high:e}] (parameter kappa of {KAPPA_OWNER} in launch_scripts/graph.toml), got {}",
+                self.kappa
+            )));
+        }
+        if self.observations == 0 || self.resamples < 2 || self.bootstrap == 0 {
+            return Err(ExplainError::Options(format!(
+                "influence needs at least 1 observation, 2 resamples and 1 bootstrap draw, got {}, {}, {}",
+                self.observations, self.resamples, self.bootstrap
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The node that declares κ's range.
+const KAPPA_OWNER: &str = "causal_arm_explainer";
 
 /// Mean absolute error of the forward model on every state feature (angles wrapped), over
 /// `rows` of `data`: the floor below which an effect is indistinguishable from error. It is

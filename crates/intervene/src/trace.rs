@@ -10,7 +10,7 @@ use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_protocol::{Command, Experiment, bag_keys, ns_from_time, topics};
 use causal_arm_sim::ArmMode;
 
-use crate::TruthError;
+use crate::InterveneError;
 
 /// One recorded simulator step: the state's stamp and joints, and the command answering it.
 #[derive(Debug, Clone)]
@@ -46,21 +46,21 @@ fn custom<T: std::str::FromStr>(
     bag: &Path,
     data: &BTreeMap<String, String>,
     key: &str,
-) -> Result<T, TruthError> {
-    let text = data.get(key).ok_or_else(|| TruthError::Bag {
+) -> Result<T, InterveneError> {
+    let text = data.get(key).ok_or_else(|| InterveneError::Bag {
         bag: bag.to_owned(),
         problem: format!(
             "metadata has no custom_data {key}; only bags written by causal-arm generate/launch record the run settings a re-simulation needs"
         ),
     })?;
-    text.parse().map_err(|_| TruthError::Bag {
+    text.parse().map_err(|_| InterveneError::Bag {
         bag: bag.to_owned(),
         problem: format!("custom_data {key}={text:?} is not a valid value"),
     })
 }
 
-fn seven(values: &[f64], what: &str, stamp: u64, bag: &Path) -> Result<[f64; 7], TruthError> {
-    values.try_into().map_err(|_| TruthError::Bag {
+fn seven(values: &[f64], what: &str, stamp: u64, bag: &Path) -> Result<[f64; 7], InterveneError> {
+    values.try_into().map_err(|_| InterveneError::Bag {
         bag: bag.to_owned(),
         problem: format!(
             "{what} at stamp {stamp} ns has {} values, expected 7",
@@ -71,12 +71,12 @@ fn seven(values: &[f64], what: &str, stamp: u64, bag: &Path) -> Result<[f64; 7],
 
 impl Trace {
     /// Reads `bag`, refusing one that does not hold `expected` or lacks the run settings.
-    pub fn read(bag: &Path, expected: Experiment) -> Result<Self, TruthError> {
+    pub fn read(bag: &Path, expected: Experiment) -> Result<Self, InterveneError> {
         let reader = BagReader::open(bag)?;
         let data = reader.custom_data();
         let experiment: Experiment = custom(bag, &data, bag_keys::EXPERIMENT)?;
         if experiment != expected {
-            return Err(TruthError::Bag {
+            return Err(InterveneError::Bag {
                 bag: bag.to_owned(),
                 problem: format!(
                     "holds {experiment} data (custom_data {}={experiment}), expected {expected}",
@@ -110,7 +110,7 @@ impl Trace {
         let mut steps = Vec::with_capacity(actions.len());
         for (stamp, action) in actions {
             let Some(&joints) = theta.get(&stamp) else {
-                return Err(TruthError::Bag {
+                return Err(InterveneError::Bag {
                     bag: bag.to_owned(),
                     problem: format!(
                         "{} at stamp {stamp} ns answers no {} message",
@@ -136,7 +136,7 @@ impl Trace {
             });
         }
         if steps.is_empty() {
-            return Err(TruthError::Bag {
+            return Err(InterveneError::Bag {
                 bag: bag.to_owned(),
                 problem: format!("no messages on {}", topics::ACTION),
             });

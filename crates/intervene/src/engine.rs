@@ -13,7 +13,9 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::index::sample;
 
-use crate::{EdgeMatrix, FORMAT, Plan, Trace, Truth, TruthError};
+use causal_arm_truth::{EdgeMatrix, FORMAT, Plan, Truth};
+
+use crate::{InterveneError, Trace};
 
 /// What the interventions at one state found.
 struct StateEffects {
@@ -48,7 +50,7 @@ impl Setup<'_> {
         snapshot: &Simulator,
         index: usize,
         first: &Command,
-    ) -> Result<Vec<f64>, TruthError> {
+    ) -> Result<Vec<f64>, InterveneError> {
         let mut sim = snapshot.clone();
         let mut out = Vec::with_capacity(self.plan.horizon * self.n_state);
         for h in 0..self.plan.horizon {
@@ -82,7 +84,11 @@ impl Setup<'_> {
     }
 
     /// Intervenes on every action at the trace's state `index` (the snapshot).
-    fn effects_at(&self, index: usize, snapshot: Simulator) -> Result<StateEffects, TruthError> {
+    fn effects_at(
+        &self,
+        index: usize,
+        snapshot: Simulator,
+    ) -> Result<StateEffects, InterveneError> {
         let recorded = &self.trace.steps[index].command;
         let factual = self.rollout(&snapshot, index, recorded)?;
         let replayed = self.rollout(&snapshot, index, recorded)?;
@@ -146,13 +152,13 @@ pub fn intervene(
     experiment: Experiment,
     plan: &Plan,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<Truth, TruthError> {
+) -> Result<Truth, InterveneError> {
     plan.check()?;
     let started = Instant::now();
     let trace = Trace::read(bag, experiment)?;
     let starts = trace.transition_starts(plan.horizon);
     if starts.len() < plan.states {
-        return Err(TruthError::Options(format!(
+        return Err(InterveneError::Options(format!(
             "{}: the bag has {} states with {} more steps in the same episode; --states {} asks for more",
             bag.display(),
             starts.len(),
@@ -219,7 +225,7 @@ fn run_workers(
     setup: &Setup,
     chosen: &[usize],
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<(Vec<StateEffects>, usize), TruthError> {
+) -> Result<(Vec<StateEffects>, usize), InterveneError> {
     let threads = setup.plan.threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
@@ -247,7 +253,7 @@ fn run_workers(
         drop(done_tx);
         let resimulated = resimulate(setup.trace, chosen, &task_tx, progress);
         drop(task_tx);
-        let found: Result<Vec<StateEffects>, TruthError> = done_rx.iter().collect();
+        let found: Result<Vec<StateEffects>, InterveneError> = done_rx.iter().collect();
         Ok((found?, resimulated?))
     })
 }
@@ -259,7 +265,7 @@ fn resimulate(
     chosen: &[usize],
     tasks: &mpsc::SyncSender<(usize, Simulator)>,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<usize, TruthError> {
+) -> Result<usize, InterveneError> {
     let Some(&last) = chosen.last() else {
         return Ok(0);
     };
@@ -284,9 +290,9 @@ fn resimulate(
 }
 
 /// The re-simulated state must be the recorded one, bit for bit.
-fn check_against_bag(state: &SimState, recorded: &crate::TraceStep) -> Result<(), TruthError> {
+fn check_against_bag(state: &SimState, recorded: &crate::TraceStep) -> Result<(), InterveneError> {
     let diverged = |what: String| {
-        Err(TruthError::Options(format!(
+        Err(InterveneError::Options(format!(
             "re-simulation left the bag at stamp {} ns (episode {}, step {}): {what}; the bag was not written by this simulator version with the settings it records",
             recorded.stamp_ns, recorded.episode, recorded.step
         )))

@@ -4,9 +4,10 @@
 use std::path::PathBuf;
 
 use causal_arm_datagen::{GenerateOptions, generate};
+use causal_arm_intervene::intervene;
 use causal_arm_protocol::{Experiment, RunPlan};
 use causal_arm_scoring::EdgeClaims;
-use causal_arm_truth::{Edge, Plan, Truth, intervene, load, score_claims, write_all};
+use causal_arm_truth::{Edge, Plan, Truth, load, score_claims, write_all};
 
 fn bag(
     name: &str,
@@ -257,7 +258,7 @@ fn an_effect_size_keeps_what_matters_on_the_dynamic_arm() {
     let exact = at(0.0);
     let sized = at(0.1);
     // The scale is the recorded joints' own one-step spread (the replay is bit-exact).
-    let trace = causal_arm_truth::Trace::read(&bag, Experiment::Exp1).unwrap();
+    let trace = causal_arm_intervene::Trace::read(&bag, Experiment::Exp1).unwrap();
     for k in 0..7 {
         let steps: Vec<f64> = trace
             .steps

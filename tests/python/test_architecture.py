@@ -105,3 +105,25 @@ def test_tokio_is_the_only_async_runtime():
     packages = set(re.findall(r'^name = "([^"]+)"', lock, re.M))
     assert "tokio" in packages
     assert not packages & {"smol", "async-std", "ctrlc"}, packages & {"smol", "async-std", "ctrlc"}
+
+
+def test_one_module_style(workspace):
+    """A module with submodules is `name/mod.rs`, never `name.rs` beside a `name/` folder
+    (cargo's test helpers, `tests/common/mod.rs`, follow the same rule)."""
+    mixed = []
+    for path, _ in workspace.values():
+        for folder in (REPO / path).rglob("*"):
+            if folder.is_dir() and "target" not in folder.parts and (folder.parent / f"{folder.name}.rs").is_file():
+                mixed.append(str((folder.parent / f"{folder.name}.rs").relative_to(REPO)))
+    assert not mixed, f"name.rs beside name/ (use name/mod.rs): {mixed}"
+
+
+def test_the_explain_pipeline_is_assembled_once():
+    """`causal_arm_explain::run` is the one explain job: the CLI and the node call it, and
+    neither assembles claims, scores or files of its own."""
+    for front in ("crates/cli/src/explain_cmd.rs", "nodes/explainer/src/main.rs"):
+        text = (REPO / front).read_text()
+        assert "causal_arm_explain::run(" in text, front
+        for assembled in ("shap_and_cai_claims", "score_claims", "calibrated_relevance", "std::fs::write",
+                          "write_all("):
+            assert assembled not in text, f"{front} assembles {assembled} itself"

@@ -11,9 +11,8 @@ import subprocess
 import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
-# The crate at the top of the graph, which may import nodes: the command line (`launch` runs
-# the graph's nodes).
-FRONT_ENDS = {"causal-arm"}
+# Node binaries: one main.rs each around a library call.
+NODE_BINARIES = ["sim", "babbler", "recorder", "reacher", "trainer", "explainer"]
 
 
 def short(name: str) -> str:
@@ -60,13 +59,13 @@ def test_the_documented_crate_table_is_cargos(workspace):
 
 
 def test_no_library_imports_a_node_crate(workspace):
+    """`nodes/` holds node binaries only; nothing, not even the command line, imports one."""
     nodes = {c for c, (path, _) in workspace.items() if path.startswith("nodes/")}
-    assert {"causal_arm_graph", "causal_arm_trainer", "causal_arm_explainer"} <= nodes
+    assert {f"causal_arm_{n}_node" for n in ("sim", "babbler", "recorder", "reacher")} | \
+        {"causal_arm_trainer", "causal_arm_explainer"} == nodes
     for crate, (path, deps) in workspace.items():
-        if crate in nodes or crate in FRONT_ENDS:
-            continue
         for kind, names in deps.items():
-            assert not names & nodes, f"library {crate} ({path}) has {kind} dependencies on nodes {names & nodes}"
+            assert not names & nodes, f"{crate} ({path}) has {kind} dependencies on nodes {names & nodes}"
 
 
 def cargo_tree(package: str) -> str:
@@ -89,10 +88,11 @@ def test_the_learning_libraries_build_no_dds(package):
 
 
 def test_the_node_crates_are_thin_mains():
-    """`nodes/trainer` and `nodes/explainer` hold one binary each and no library."""
-    for node in ("trainer", "explainer"):
+    """Every crate under `nodes/` holds one binary, `src/main.rs`, and no library."""
+    for node in NODE_BINARIES:
         src = REPO / "nodes" / node / "src"
         assert sorted(f.name for f in src.rglob("*.rs")) == ["main.rs"], f"nodes/{node}"
+    assert sorted(p.name for p in (REPO / "nodes").iterdir() if p.is_dir()) == sorted(NODE_BINARIES)
 
 
 def test_the_babbler_builds_no_simulator():

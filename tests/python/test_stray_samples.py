@@ -100,7 +100,7 @@ def test_stray_and_malformed_samples_neither_stop_the_run_nor_enter_the_bag(
                             "causal_arm_recorder": [forged_acks[2]]}),
     ]
     state_reader = DataReader(plain, Topic(plain, "rt/joint_states", JointState), qos=ros_default_qos(100))
-    env = {**os.environ, "ROS_DOMAIN_ID": str(domain), "RUST_LOG": "warn,causal_arm_graph=info"}
+    env = {**os.environ, "ROS_DOMAIN_ID": str(domain), "RUST_LOG": "warn,causal_arm_rig=info"}
     dds = tmp_path / "dds"
     proc = subprocess.Popen([str(causal_arm_bin), "launch", "exp1", "--steps", str(steps), "--seed", "4",
                              "--out", str(dds)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -3,33 +3,22 @@
 //! the graphs never see each other's topics, recording into `OUT/shard-i`; the result is
 //! the shard set `generate --shards N` writes, listed in `OUT/shard_set.yaml`.
 
-use std::os::unix::process::CommandExt as _;
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use causal_arm_datagen::{GenerateOptions, shard_options, shard_set_manifest};
 use causal_arm_node::env::MAX_DOMAIN_ID;
 use causal_arm_node::{RosArgs, RosEnv};
 use causal_arm_protocol::Experiment;
-
-use crate::launch_cmd::LaunchArgs;
+use causal_arm_rig::launch::{Process, wait_all};
 
 /// Runs the shard set of `options` as `count` graphs and waits for all of them.
 pub fn run(
-    args: &LaunchArgs,
     options: &GenerateOptions,
     count: u64,
+    composed: bool,
     ros_args: &RosArgs,
 ) -> anyhow::Result<()> {
-    if args.generate.resume {
-        bail!(
-            "--resume continues one bag; give --shards 1, or re-run the shard set with --overwrite"
-        );
-    }
-    if args.print_commands {
-        bail!("--print-commands shows one graph's nodes; drop --shards");
-    }
     let shards = shard_options(options, count)?;
     for shard in &shards {
         causal_arm_datagen::validate(shard)?;
@@ -46,9 +35,15 @@ pub fn run(
     let mut children = Vec::new();
     for (i, shard) in shards.iter().enumerate() {
         let domain = base + i as u64;
-        let child = spawn_shard(shard, domain, args.composed, ros_args)
-            .with_context(|| format!("starting shard {i} (domain {domain})"))?;
-        children.push((format!("shard {i} (domain {domain})"), child));
+        let exe = std::env::current_exe().context("locating the causal-arm executable")?;
+        let name = format!("shard {i} (domain {domain})");
+        let env = [("ROS_DOMAIN_ID", domain.to_string())];
+        children.push(Process::spawn_env(
+            &name,
+            &exe,
+            &shard_args(shard, composed, ros_args),
+            &env,
+        )?);
     }
     wait_all(&mut children)?;
     let steps = options.plan.total_steps();
@@ -59,32 +54,6 @@ pub fn run(
         steps as f64 / secs
     );
     Ok(())
-}
-
-/// This executable's `launch` of one shard, in `domain`, dying with its parent.
-fn spawn_shard(
-    shard: &GenerateOptions,
-    domain: u64,
-    composed: bool,
-    ros_args: &RosArgs,
-) -> anyhow::Result<Child> {
-    let exe = std::env::current_exe().context("locating the causal-arm executable")?;
-    let mut command = Command::new(exe);
-    command
-        .args(shard_args(shard, composed, ros_args))
-        .env("ROS_DOMAIN_ID", domain.to_string())
-        .stdin(Stdio::null());
-    // SAFETY: prctl is async-signal-safe and touches only the child being started; a
-    // shard gets SIGTERM (and finalizes its bag) if this launcher dies.
-    unsafe {
-        command.pre_exec(|| {
-            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
-    Ok(command.spawn()?)
 }
 
 /// The command line of one shard's `launch`: its share, seed, output and place in the set.
@@ -145,41 +114,6 @@ fn shard_args(shard: &GenerateOptions, composed: bool, ros_args: &RosArgs) -> Ve
         args.extend(ros);
     }
     args
-}
-
-/// Waits for every shard; when one fails, asks the others to stop (each finalizes its
-/// bag with the steps it has) and fails naming it. Ctrl-C reaches the shards directly
-/// (same process group), so they stop and finalize as a single launch does.
-fn wait_all(children: &mut [(String, Child)]) -> anyhow::Result<()> {
-    let mut failed = None;
-    loop {
-        let mut running = 0;
-        for (name, child) in children.iter_mut() {
-            match child.try_wait()? {
-                None => running += 1,
-                Some(status) if !status.success() && failed.is_none() => {
-                    failed = Some(format!("{name} failed ({status})"));
-                }
-                Some(_) => {}
-            }
-        }
-        if running == 0 {
-            break;
-        }
-        if failed.is_some() {
-            for (_, child) in children.iter_mut() {
-                if child.try_wait()?.is_none() {
-                    // SAFETY: kill(2) on a child we started and have not reaped.
-                    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
-                }
-            }
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    match failed {
-        Some(why) => bail!("{why}; the other shards stopped and finalized their bags"),
-        None => Ok(()),
-    }
 }
 
 #[cfg(test)]

@@ -24,6 +24,7 @@ use crate::choice::choice;
 use crate::launch_cmd;
 use crate::progress::Counter;
 use crate::reach_models::{TrainedFm, TrainedIm};
+use causal_arm_rig::launch::{LaunchPlan, Process, STOP_TIMEOUT, node_binary, stop_all};
 
 /// Which policy drives the arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -356,13 +357,18 @@ pub(crate) fn run_reacher_graph(
         format!("targets_file:={}", targets_file.display()),
         format!("report:={}", file.display()),
     ]);
-    let commands = with_reacher(launch_cmd::node_commands(&options)?, &reacher, ros_args)?;
+    let mut plan = LaunchPlan::from_graph(graph()?, &options, ros_args.enclave.as_deref());
+    plan.stand_in(graph()?, "causal_arm_reacher", &reacher)?;
+    let bin_dir = launch_cmd::bin_dir()?;
     let mut trainer = match run.trainer {
-        Some(models) => launch_cmd::spawn_nodes(vec![trainer_command(models, ros_args)])?,
+        Some(models) => vec![trainer_process(models, ros_args, &bin_dir)?],
         None => Vec::new(),
     };
-    let outcome = launch_cmd::run_graph(&options, commands, ros_args);
-    launch_cmd::stop_nodes(&mut trainer)?;
+    let outcome = match plan.spawn(&bin_dir) {
+        Ok(nodes) => launch_cmd::follow(&options, ros_args, &plan, nodes),
+        Err(e) => Err(e),
+    };
+    stop_all(&mut trainer, STOP_TIMEOUT)?;
     outcome?;
     Ok(serde_json::from_str(
         &std::fs::read_to_string(file)
@@ -370,41 +376,13 @@ pub(crate) fn run_reacher_graph(
     )?)
 }
 
-/// The graph's node commands with the reacher in the babbler's place (its own
-/// parameters `own` added), each node joining with the launcher's enclave.
-fn with_reacher(
-    commands: Vec<(String, Vec<String>)>,
-    own: &[String],
-    ros_args: &RosArgs,
-) -> anyhow::Result<Vec<(String, Vec<String>)>> {
-    let reacher = (graph()?.stand_ins.iter())
-        .find(|n| n.name == "causal_arm_reacher")
-        .context("the graph file declares no causal_arm_reacher stand-in")?;
-    let replaced = reacher.replaces.clone().unwrap_or_default();
-    Ok(commands
-        .into_iter()
-        .map(|(name, mut node_args)| {
-            if name == replaced {
-                node_args.extend(own.iter().flat_map(|p| ["-p".to_owned(), p.clone()]));
-                return (reacher.name.clone(), node_args);
-            }
-            (name, node_args)
-        })
-        .map(|(name, mut node_args)| {
-            if let Some(enclave) = &ros_args.enclave {
-                node_args.extend(["--enclave".to_owned(), enclave.clone()]);
-            }
-            (name, node_args)
-        })
-        .collect())
-}
-
 /// The trainer node serving model directory `dir` with the given forward and inverse
 /// models.
-fn trainer_command(
+fn trainer_process(
     (dir, forward, inverse): (&Path, &String, &String),
     ros_args: &RosArgs,
-) -> (String, Vec<String>) {
+    bin_dir: &Path,
+) -> anyhow::Result<Process> {
     let mut node_args: Vec<String> = vec!["--ros-args".into()];
     for p in [
         format!("model_dir:={}", dir.display()),
@@ -416,7 +394,8 @@ fn trainer_command(
     if let Some(enclave) = &ros_args.enclave {
         node_args.extend(["--enclave".to_owned(), enclave.clone()]);
     }
-    ("causal_arm_trainer".to_owned(), node_args)
+    let name = "causal_arm_trainer";
+    Process::spawn(name, &node_binary(bin_dir, name)?, &node_args)
 }
 
 fn controller(args: &ReachArgs, model: &ArmModel) -> anyhow::Result<Box<dyn Controller>> {

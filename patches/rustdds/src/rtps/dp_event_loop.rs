@@ -629,7 +629,13 @@ impl DPEventLoop {
         DpTimerEvent::Writer { entity_id, event } => {
           if let Some(writer) = self.writers.get_mut(&entity_id) {
             writer.handle_timed_event(event);
-            if event == crate::rtps::writer::TimedEvent::ResumePacedSend {
+            // A resumed paced send, or a periodic HEARTBEAT that pushed
+            // stranded samples, may have blocked on a socket.
+            if matches!(
+              event,
+              crate::rtps::writer::TimedEvent::ResumePacedSend
+                | crate::rtps::writer::TimedEvent::Heartbeat
+            ) {
               self.after_writer_push(entity_id);
             }
           } else if !preparing_to_stop {

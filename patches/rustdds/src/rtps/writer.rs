@@ -279,6 +279,9 @@ pub(crate) struct Writer {
   /// Highest sequence number this Writer has fully transmitted (push mode).
   /// Samples with `seq` in `(last_sent, send_buffer.last]` are pending send.
   last_sent: SequenceNumber,
+  /// The first sample the last periodic HEARTBEAT found admitted but not
+  /// pushed (see `push_stranded`).
+  unpushed_at_tick: Option<SequenceNumber>,
   /// nonblocking-transmit: transmit progress within the sample `last_sent + 1`
   /// (the one currently being pushed). `Fresh` unless a large sample was
   /// interrupted mid-way by a full socket.
@@ -407,6 +410,7 @@ impl Writer {
       my_topic_name: i.topic_name,
       send_buffer: i.send_buffer,
       last_sent: SequenceNumber::zero(),
+      unpushed_at_tick: None,
       sample_cursor: SampleCursor::Fresh,
       blocked_sockets: BTreeSet::new(),
       paced: false,
@@ -546,6 +550,7 @@ impl Writer {
   pub fn handle_timed_event(&mut self, event: TimedEvent) {
     match event {
       TimedEvent::Heartbeat => {
+        self.push_stranded();
         let readers_behind = self.handle_heartbeat_tick(false);
         // ^^ false = This is automatic heartbeat by timer, not manual by application
         // call.
@@ -1113,6 +1118,35 @@ impl Writer {
         self.send_buffer.set_sent_frontier(sequence_number);
       }
     }
+  }
+
+  /// Pushes the samples admitted but still not pushed a whole heartbeat period
+  /// after a periodic HEARTBEAT first saw them so, while no send is paced or
+  /// blocked: the doorbell that should have pushed them was not acted on. Seen
+  /// under 1-5 % packet loss, about one launch in 100: a latched sample written
+  /// once stayed unpushed for the whole run while every periodic HEARTBEAT
+  /// advertised only the samples before it, so no reader ever asked for it.
+  /// (A sample seen unpushed by one tick is usually just written, its doorbell
+  /// queued behind the timers in the same wake-up: it waits for the next tick.)
+  /// Returns whether it pushed.
+  fn push_stranded(&mut self) -> bool {
+    let waiting = self.last_sent < self.send_buffer.last_change_sequence_number()
+      && !self.paced
+      && self.sample_cursor == SampleCursor::Fresh
+      && self.blocked_sockets.is_empty();
+    let stranded = waiting && self.unpushed_at_tick.is_some_and(|sn| self.last_sent < sn);
+    if stranded {
+      warn!(
+        "topic={:?}: samples {:?}..={:?} were admitted but not pushed a heartbeat period later; pushing them now",
+        self.my_topic_name,
+        self.last_sent.plus_1(),
+        self.send_buffer.last_change_sequence_number()
+      );
+      self.process_pending();
+    }
+    self.unpushed_at_tick = (self.last_sent < self.send_buffer.last_change_sequence_number())
+      .then(|| self.last_sent.plus_1());
+    stranded
   }
 
   /// The last sequence number a HEARTBEAT may advertise: the last one pushed.
@@ -3443,6 +3477,24 @@ mod tests {
 
       f.writer.process_pending();
       assert_eq!(f.writer.advertised_last_sn(), SequenceNumber::new(2));
+    }
+
+    // A sample whose doorbell was not acted on is pushed by the second periodic
+    // HEARTBEAT that finds it unpushed, which then advertises it (it advertised only pushed samples,
+    // so no reader would ever have asked for it).
+    #[test]
+    fn a_heartbeat_pushes_a_sample_its_doorbell_left_unpushed() {
+      let mut f = Fixture::user(1, 8, None);
+      f.writer.process_pending();
+      admit_sample(&f.writer.send_buffer, 8); // sample 2; its doorbell is lost
+      assert_eq!(f.writer.advertised_last_sn(), SequenceNumber::new(1));
+      // The first tick may have run just before the doorbell: it only notes it.
+      f.writer.handle_timed_event(TimedEvent::Heartbeat);
+      assert_eq!(f.writer.last_sent, SequenceNumber::new(1));
+      f.writer.handle_timed_event(TimedEvent::Heartbeat);
+      assert_eq!(f.writer.last_sent, SequenceNumber::new(2));
+      assert_eq!(f.writer.advertised_last_sn(), SequenceNumber::new(2));
+      assert!(!f.writer.push_stranded(), "nothing is left to push");
     }
 
     // A round stops once REPAIR_BATCH_MAX_BYTES have gone out and the next

@@ -20,6 +20,7 @@ pub mod compose;
 pub mod feed;
 pub mod flow;
 pub mod intra;
+pub mod launch;
 pub mod parts;
 pub mod plan;
 pub mod reacher_node;

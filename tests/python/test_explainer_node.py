@@ -113,7 +113,7 @@ def test_cli_writes_every_file_and_the_colour_verdict(exp2):
     (["--samples", "0"], "samples must be at least 1"),
     (["--background-kind", "kmeans"], "equal weights"),
     (["--samples", "100000"], "transitions"),
-    (["--threshold", "0"], "threshold must be a positive number, got 0"),
+    (["--threshold", "0"], "--threshold must be a positive number, got 0"),
     (["--method", "kernel", "--kernel-samples", "1"], "nsamples 1 is fewer than the model's"),
 ])
 def test_cli_bad_options_are_clear_errors(exp2, run_cli, args, message):

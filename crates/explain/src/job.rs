@@ -143,7 +143,7 @@ impl ExplainRequest {
         let bad = |m: String| Err(ExplainError::Options(m));
         if !(self.threshold.is_finite() && self.threshold > 0.0) {
             return bad(format!(
-                "the threshold must be a positive number, got {}",
+                "--threshold must be a positive number, got {}",
                 self.threshold
             ));
         }

@@ -207,41 +207,53 @@ pub fn wait_all<N: Started>(nodes: &mut [N]) -> anyhow::Result<()> {
 mod tests {
     use super::*;
 
-    /// A stand-in node: a shell running `script`.
-    fn shell(name: &str, script: &str) -> Process {
-        Process::spawn(name, Path::new("/bin/sh"), &["-c".into(), script.into()]).unwrap()
+    /// A stand-in node: a shell that sets its signal handling (`trap`), says it is ready,
+    /// then runs `body`. Returns once it is ready, so a signal never meets a shell that
+    /// has not set its trap yet.
+    fn node(dir: &tempfile::TempDir, name: &str, trap: &str, body: &str) -> Process {
+        let ready = dir.path().join(format!("{name}.ready"));
+        let script = format!("{trap}; : > '{}'; {body}", ready.display());
+        let process = Process::spawn(name, Path::new("/bin/sh"), &["-c".into(), script]).unwrap();
+        while !ready.exists() {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        process
     }
 
-    /// Runs until SIGINT, then exits 0 (as a node that finalizes); its sleeps are short,
-    /// so none outlives it by more than 50 ms.
-    const UNTIL_SIGINT: &str = "trap 'exit 0' INT; while :; do sleep 0.05; done";
-
-    fn recorder() -> Process {
-        shell("recorder", UNTIL_SIGINT)
+    /// Exits 0 on SIGINT (as a node that finalizes its bag), else runs on; its sleeps are
+    /// short, so none outlives it by more than 50 ms.
+    fn until_sigint(dir: &tempfile::TempDir, name: &str) -> Process {
+        node(
+            dir,
+            name,
+            "trap 'exit 0' INT",
+            "while :; do sleep 0.05; done",
+        )
     }
 
     #[test]
     fn a_node_that_dies_ends_the_run_and_is_named() {
-        let mut ends_run = recorder();
-        let mut others = vec![shell("babbler", "sleep 0.2; exit 3")];
+        let dir = tempfile::tempdir().unwrap();
+        let mut ends_run = until_sigint(&dir, "recorder");
+        let mut others = vec![node(&dir, "babbler", "true", "sleep 0.2; exit 3")];
         let stop = AtomicBool::new(false);
-        let started = Instant::now();
         let err = follow(&mut ends_run, &mut others, &stop, &mut || {}).unwrap_err();
         assert!(
             err.to_string().contains("babbler failed (exit status: 3)"),
             "{err}"
         );
-        assert!(
-            ends_run.exited().unwrap().is_some(),
-            "the recorder was interrupted"
+        assert_eq!(
+            ends_run.exited().unwrap(),
+            Some(Ok(())),
+            "the recorder was interrupted and finalized"
         );
-        assert!(started.elapsed() < Duration::from_secs(10));
     }
 
     #[test]
     fn sigint_interrupts_the_run_ending_node_and_gives_its_outcome() {
-        let mut ends_run = recorder();
-        let mut others = vec![shell("sim", UNTIL_SIGINT)];
+        let dir = tempfile::tempdir().unwrap();
+        let mut ends_run = until_sigint(&dir, "recorder");
+        let mut others = vec![until_sigint(&dir, "sim")];
         let stop = AtomicBool::new(false);
         let mut ticks = 0;
         let outcome = follow(&mut ends_run, &mut others, &stop, &mut || {
@@ -252,35 +264,45 @@ mod tests {
         })
         .unwrap();
         assert_eq!(outcome, Ok(()));
-        stop_all(&mut others, Duration::from_secs(5)).unwrap();
-        assert!(others[0].exited().unwrap().is_some());
+        assert_eq!(
+            others[0].exited().unwrap(),
+            None,
+            "the others are the caller's"
+        );
+        stop_all(&mut others, Duration::from_secs(30)).unwrap();
+        assert_eq!(others[0].exited().unwrap(), Some(Ok(())));
     }
 
     #[test]
     fn a_node_that_ignores_sigint_is_killed_after_the_timeout() {
-        let mut nodes = vec![shell(
+        let dir = tempfile::tempdir().unwrap();
+        let mut nodes = vec![node(
+            &dir,
             "stubborn",
-            "trap '' INT; while :; do sleep 0.05; done",
+            "trap '' INT",
+            "while :; do sleep 0.05; done",
         )];
+        let limit = Duration::from_millis(300);
         let started = Instant::now();
-        stop_all(&mut nodes, Duration::from_millis(300)).unwrap();
-        assert!(nodes[0].exited().unwrap().is_some());
-        let took = started.elapsed();
+        stop_all(&mut nodes, limit).unwrap();
+        assert!(started.elapsed() >= limit, "killed before its time was up");
+        let outcome = nodes[0].exited().unwrap();
         assert!(
-            took >= Duration::from_millis(300) && took < Duration::from_secs(5),
-            "{took:?}"
+            matches!(&outcome, Some(Err(status)) if status.contains("SIGKILL")),
+            "{outcome:?}"
         );
     }
 
     #[test]
     fn a_failed_shard_stops_the_others_and_is_named() {
+        let dir = tempfile::tempdir().unwrap();
         let mut shards = vec![
-            shell("shard 0", UNTIL_SIGINT),
-            shell("shard 1", "sleep 0.2; exit 1"),
+            until_sigint(&dir, "shard 0"),
+            node(&dir, "shard 1", "true", "sleep 0.2; exit 1"),
         ];
         let err = wait_all(&mut shards).unwrap_err();
         assert!(err.to_string().starts_with("shard 1 failed"), "{err}");
-        assert!(shards[0].exited().unwrap().is_some());
+        assert_eq!(shards[0].exited().unwrap(), Some(Ok(())));
     }
 
     #[test]

@@ -147,8 +147,8 @@ impl ExplainRequest {
                 self.threshold
             ));
         }
-        if self.samples == 0 {
-            return bad("samples must be at least 1 observation".into());
+        if let Some(method) = self.method.shap() {
+            self.shap_settings(method).check()?;
         }
         self.influence().validate()?;
         if self.bags.is_empty() {

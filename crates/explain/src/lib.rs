@@ -140,7 +140,8 @@ impl Settings {
         }
     }
 
-    fn check(&self) -> Result<()> {
+    /// Refuses settings no explanation can run with (the job checks them before loading).
+    pub(crate) fn check(&self) -> Result<()> {
         if self.samples == 0 {
             return Err(ExplainError::Options(
                 "samples must be at least 1 observation".into(),

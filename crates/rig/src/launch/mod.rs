@@ -31,7 +31,8 @@ pub struct NodeCommand {
     pub args: Vec<String>,
 }
 
-/// The nodes of one run, in the graph file's start order, and which of them ends the run.
+/// The nodes of one run, in the graph file's start order ([`LaunchPlan::ends_run`] says
+/// which of them ends it).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct LaunchPlan {
     /// The nodes to start.

@@ -104,6 +104,32 @@ impl Changes {
         }
     }
 
+    /// The drawn transitions at positions `members` (ascending) of this draw, with the
+    /// draw's resolution: a context's share of it.
+    pub fn subset(&self, members: &[usize]) -> Self {
+        let pick = |v: &[Vec<f64>]| members.iter().map(|&i| v[i].clone()).collect();
+        Self {
+            rows: members.iter().map(|&i| self.rows[i]).collect(),
+            states: pick(&self.states),
+            holding: members.iter().map(|&i| self.holding[i]).collect(),
+            actions: pick(&self.actions),
+            deltas: pick(&self.deltas),
+            horizon: self.horizon,
+            clusters: self
+                .clusters
+                .as_ref()
+                .map(|c| members.iter().map(|&i| c[i]).collect()),
+            angular: self.angular.clone(),
+            resolution: self.resolution.clone(),
+        }
+    }
+
+    /// The changes as a matrix, `[row][state]`: what the tests regress.
+    pub(crate) fn delta_matrix(&self) -> nalgebra::DMatrix<f64> {
+        let ns = self.resolution.len();
+        nalgebra::DMatrix::from_fn(self.deltas.len(), ns, |r, k| self.deltas[r][k])
+    }
+
     /// Whether feature `k` changed in any drawn transition.
     pub fn ever_changes(&self, k: usize) -> bool {
         self.deltas.iter().any(|d| d[k] != 0.0)

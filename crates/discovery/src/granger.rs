@@ -6,6 +6,7 @@ use causal_arm_scoring::{Decision, EdgeClaims, Verdict};
 use nalgebra::{DMatrix, DVector};
 use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor, Normal};
 
+use crate::contexts::{ContextTest, intermittent_features, tests_within_contexts};
 use crate::design::{Design, Terms};
 use crate::{Changes, DiscoveryError, Result};
 
@@ -26,6 +27,11 @@ pub struct GrangerSettings {
     /// "Does not" when the change is predicted to within this many times its f32
     /// resolution without a_j (the three-valued test only).
     pub resolution_margin: f64,
+    /// Also test the intermittent features within each context of the state
+    /// ([`crate::ContextTest`], one-step changes only), Bonferroni over every test: an
+    /// effect confined to one context is found there.
+    #[serde(default)]
+    pub within_contexts: bool,
 }
 
 impl GrangerSettings {
@@ -38,6 +44,7 @@ impl GrangerSettings {
             max_rows: 50_000,
             seed: 0,
             resolution_margin: 0.0,
+            within_contexts: false,
         }
     }
 
@@ -51,6 +58,7 @@ impl GrangerSettings {
             max_rows: 50_000,
             seed: 0,
             resolution_margin: 4.0,
+            within_contexts: true,
         }
     }
 
@@ -123,6 +131,14 @@ pub struct DataTest {
     pub resolution: Vec<f64>,
     /// Per feature: whether it changed in any transition used.
     pub changes: Vec<bool>,
+    /// The same tests within each context of the state (with
+    /// [`GrangerSettings::within_contexts`]; contexts too small to test are left out).
+    #[serde(default)]
+    pub within: Vec<ContextTest>,
+    /// Per feature: whether it is intermittent (moves in at most
+    /// [`crate::INTERMITTENT_SHARE`] of the rows), so tested within each context too.
+    #[serde(default)]
+    pub intermittent: Vec<bool>,
     /// Wall time, s.
     pub seconds: f64,
 }
@@ -167,9 +183,24 @@ impl DataTest {
             )));
         }
         let ns = data.state_width();
-        let y = DMatrix::from_fn(n, ns, |r, k| changes.deltas[r][k]);
         let clusters = changes.clusters.as_deref().map(cluster_index);
-        let pairs = fit_and_test(&design, &y, settings.robust, clusters.as_ref());
+        // Within contexts at one step only: h steps on, the scripted phases' later
+        // commands depend on the context, which then confounds the test.
+        let intermittent = if settings.within_contexts && changes.horizon == 1 {
+            intermittent_features(changes, settings.resolution_margin)
+        } else {
+            vec![false; ns]
+        };
+        let (pairs, within) = rayon::join(
+            || {
+                let y = changes.delta_matrix();
+                fit_and_test(&design, &y, settings.robust, clusters.as_ref())
+            },
+            || match intermittent.contains(&true) {
+                true => tests_within_contexts(changes, data, settings, &intermittent),
+                false => Vec::new(),
+            },
+        );
         Ok(Self {
             settings: settings.clone(),
             action_names: action_names(data.experiment),
@@ -178,15 +209,39 @@ impl DataTest {
             rows: n,
             data_rows: data.rows(),
             pairs,
+            within,
+            intermittent,
             changes: (0..ns).map(|k| changes.ever_changes(k)).collect(),
             resolution: changes.resolution.clone(),
             seconds: started.elapsed().as_secs_f64(),
         })
     }
 
-    /// The per-pair significance level after the Bonferroni correction.
+    /// The change of s_k predicted to within this RMS is predicted to its resolution.
+    fn resolution_bound(&self, k: usize) -> f64 {
+        self.settings.resolution_margin * self.resolution[k]
+    }
+
+    /// The per-test significance level after the Bonferroni correction over every pair and
+    /// every context tested.
     pub fn level(&self) -> f64 {
-        self.settings.alpha / (self.action_names.len() * self.state_names.len()).max(1) as f64
+        let features = self.state_names.len()
+            + self.within.len() * self.intermittent.iter().filter(|&&c| c).count();
+        self.settings.alpha / (self.action_names.len() * features).max(1) as f64
+    }
+
+    /// The strongest test of a_j on s_k, over all rows or within a context, and the
+    /// context's name (`None`: all rows).
+    pub fn strongest(&self, a: usize, k: usize) -> (Option<&str>, &PairTest) {
+        self.within
+            .iter()
+            .map(|c| (Some(c.context.as_str()), &c.pairs[a][k]))
+            // A context where the change is predicted to its resolution without a_j has
+            // no noise to test against: its statistic would be rounding.
+            .filter(|(_, t)| t.dof > 0 && t.rms_without > self.resolution_bound(k))
+            .fold((None, &self.pairs[a][k]), |best, next| {
+                if next.1.z > best.1.z { next } else { best }
+            })
     }
 
     /// The standard-normal deviate a pair's `z` must reach to be significant at
@@ -215,6 +270,26 @@ impl DataTest {
         )
     }
 
+    /// The tests within contexts in words, for the rules (empty when none ran).
+    fn context_words(&self) -> String {
+        if self.within.is_empty() {
+            return String::new();
+        }
+        let names = |it: &mut dyn Iterator<Item = &str>| it.collect::<Vec<_>>().join(", ");
+        format!(
+            " over all rows, and for the intermittent features ({}) within each context ({}) too",
+            names(
+                &mut self
+                    .state_names
+                    .iter()
+                    .zip(&self.intermittent)
+                    .filter(|(_, i)| **i)
+                    .map(|(n, _)| n.as_str())
+            ),
+            names(&mut self.within.iter().map(|c| c.context.as_str()))
+        )
+    }
+
     /// Two-valued claims of the standard anchor: drives where p is below the corrected level.
     pub fn anchor_claims(&self, method: &str) -> EdgeClaims {
         let level = self.level();
@@ -240,8 +315,9 @@ impl DataTest {
     pub fn claims(&self, method: &str) -> EdgeClaims {
         let mut claims = self.claims_frame(method);
         claims.rule = format!(
-            "data: drives when the {} has p < {:.1e} (family-wise {}, Bonferroni); does not when s_k never changes or is predicted without a_j to within {} x its f32 resolution; else undecided ({} of {} transitions)",
+            "data: drives when the {}{} has p < {:.1e} (family-wise {}, Bonferroni over every test); does not when s_k never changes or is predicted without a_j to within {} x its f32 resolution; else undecided ({} of {} transitions)",
             self.test_words(),
+            self.context_words(),
             self.level(),
             self.settings.alpha,
             self.settings.resolution_margin,
@@ -273,7 +349,7 @@ impl DataTest {
     pub fn decide(&self, a: usize, k: usize) -> Decision {
         let t = &self.pairs[a][k];
         let (action, state) = (&self.action_names[a], &self.state_names[k]);
-        let bound = self.settings.resolution_margin * self.resolution[k];
+        let bound = self.resolution_bound(k);
         let decision = |verdict, reason: String, to_decide: &str| Decision {
             verdict,
             source: if verdict == Verdict::Undecided {
@@ -312,16 +388,18 @@ impl DataTest {
                 "",
             );
         }
-        if t.p_value < self.level() {
+        let (context, best) = self.strongest(a, k);
+        if best.p_value < self.level() {
             return decision(
                 Verdict::Drives,
                 format!(
-                    "p = {:.1e} < {:.1e} ({} columns, z = {:.1}); effect std {:.2e}",
-                    t.p_value,
+                    "p = {:.1e} < {:.1e} ({} columns, z = {:.1}{}); effect std {:.2e}",
+                    best.p_value,
                     self.level(),
-                    t.dof,
-                    t.z,
-                    t.effect
+                    best.dof,
+                    best.z,
+                    context.map_or(String::new(), |c| format!(", within context {c}")),
+                    best.effect
                 ),
                 "",
             );
@@ -346,10 +424,8 @@ impl DataTest {
             observations: self.rows,
             action_names: self.action_names.clone(),
             state_names: self.state_names.clone(),
-            score: self
-                .pairs
-                .iter()
-                .map(|row| row.iter().map(|t| t.z).collect())
+            score: (0..na)
+                .map(|a| (0..ns).map(|k| self.strongest(a, k).1.z).collect())
                 .collect(),
             interval: None,
             drives: vec![vec![false; ns]; na],
@@ -379,12 +455,12 @@ fn terms_words(terms: Terms) -> &'static str {
 }
 
 /// Rows grouped by cluster: per row its cluster's index (0..count), and the count.
-struct ClusterIndex {
+pub(crate) struct ClusterIndex {
     of_row: Vec<usize>,
     count: usize,
 }
 
-fn cluster_index(ids: &[u64]) -> ClusterIndex {
+pub(crate) fn cluster_index(ids: &[u64]) -> ClusterIndex {
     let mut seen = std::collections::HashMap::new();
     let of_row = ids
         .iter()
@@ -420,7 +496,7 @@ fn robust_covariance(g: DMatrix<f64>, clusters: Option<&ClusterIndex>, p: usize)
 }
 
 /// Least squares of every column of `y` on the design, then every pair's block test.
-fn fit_and_test(
+pub(crate) fn fit_and_test(
     design: &Design,
     y: &DMatrix<f64>,
     robust: bool,
@@ -503,7 +579,7 @@ fn fit_and_test(
 
 impl PairTest {
     /// The pair of an action that never varied: nothing tested.
-    fn untested(rss: f64, n: usize) -> Self {
+    pub(crate) fn untested(rss: f64, n: usize) -> Self {
         Self {
             statistic: 0.0,
             dof: 0,

@@ -17,10 +17,12 @@
 #![warn(missing_docs)]
 
 mod changes;
+mod contexts;
 mod design;
 mod granger;
 
 pub use changes::{CLUSTER_SPAN, Changes};
+pub use contexts::{ContextTest, INTERMITTENT_SHARE};
 pub use design::Terms;
 pub use granger::{DataTest, GrangerSettings, PairTest, granger_claims};
 

@@ -136,7 +136,7 @@ pub fn default_claims(
     for (a, data_row) in data_decisions.into_iter().enumerate() {
         let mut row = Vec::with_capacity(ns);
         for (k, data_decision) in data_row.into_iter().enumerate() {
-            let data_score = data.pairs[a][k].z / z_crit;
+            let data_score = data.strongest(a, k).1.z / z_crit;
             let model_score = model.deciding_score(a, k, kappa);
             let (decision, score) = combine(data_decision, data_score, model, model_score, (a, k));
             claims.score[a][k] = score;

@@ -16,7 +16,8 @@ use rayon::prelude::*;
 
 use crate::Changes;
 use crate::design::Design;
-use crate::granger::{GrangerSettings, PairTest, cluster_index, fit_and_test};
+use crate::fit::{PairTest, cluster_index, fit_and_test};
+use crate::granger::GrangerSettings;
 
 /// A feature is intermittent when it moves (changes by more than the data test's
 /// resolution margin) in at most this share of the rows. On the dynamic arm's

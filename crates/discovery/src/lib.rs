@@ -10,7 +10,8 @@
 //! - the data half of the product's verdicts ([`DataTest`]): the action × state design with
 //!   squared actions and a heteroscedasticity-robust Wald test, which also says "does not"
 //!   where the change is predicted to the recording's own resolution without a_j, and
-//!   "undecided" otherwise.
+//!   "undecided" otherwise; the features that stand still in much of the data (the cube,
+//!   the magnet) are also tested within each context of the state ([`ContextTest`]).
 //!
 //! Pure functions of a [`Dataset`]; no I/O.
 
@@ -19,12 +20,14 @@
 mod changes;
 mod contexts;
 mod design;
+mod fit;
 mod granger;
 
 pub use changes::{CLUSTER_SPAN, Changes};
 pub use contexts::{ContextTest, INTERMITTENT_SHARE};
 pub use design::Terms;
-pub use granger::{DataTest, GrangerSettings, PairTest, granger_claims};
+pub use fit::PairTest;
+pub use granger::{DataTest, GrangerSettings, granger_claims};
 
 /// Why a test could not run.
 #[derive(Debug, thiserror::Error)]

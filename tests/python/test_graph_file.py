@@ -75,3 +75,23 @@ def test_a_bad_graph_file_is_named(run_cli, tmp_path):
     assert out.returncode != 0
     assert f"error: graph file {bad}: node " in out.stderr, out.stderr
     assert "parameter sigma: default 20 outside its range [0, 10]" in out.stderr
+
+
+def test_a_seed_beyond_int64_gets_one_verdict_from_the_cli_and_every_node(run_cli, causal_arm_bin, tmp_path, private_netns):
+    """The seed is an int64 ROS parameter of every node: `generate` and `launch` refuse what
+    the nodes would refuse, with the nodes' own words, before any work starts (launch used
+    to accept it and fail inside the nodes)."""
+    import subprocess
+    seed = str(2**64 - 1)
+    message = f'parameter "seed" = {seed} is outside its range [0, {2**63 - 1}]'
+    for command in (["generate", "exp1", "--steps", "10"], ["launch", "exp1", "--steps", "10"]):
+        r = run_cli(*command, "--seed", seed, "--out", tmp_path / "bag")
+        assert r.returncode != 0 and message in r.stderr, r.stderr
+        assert not (tmp_path / "bag").exists()
+    for node in ("causal_arm_sim", "causal_arm_babbler", "causal_arm_recorder"):
+        r = subprocess.run([str(causal_arm_bin.parent / node), "--ros-args", "-p", f"seed:={seed}"],
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode != 0 and message in r.stderr, (node, r.stderr)
+    # The largest seed both take is the same one.
+    r = run_cli("generate", "exp1", "--steps", "10", "--seed", str(2**63 - 1), "--out", tmp_path / "ok")
+    assert r.returncode == 0, r.stderr

@@ -42,8 +42,9 @@ pub struct GenerateArgs {
     /// Override the number of episodes (exp2) — must be positive.
     #[arg(long, allow_negative_numbers = true)]
     episodes: Option<i64>,
-    /// Seed of simulator and babbler.
-    #[arg(long, default_value = run_default_text("seed"))]
+    /// Seed of simulator and babbler (an int64 ROS parameter of every node: at most
+    /// 2^63 − 1).
+    #[arg(long, default_value = run_default_text("seed"), value_parser = seed_value)]
     seed: u64,
     /// Bag directory to write (refused if it already holds a bag, unless --overwrite).
     #[arg(long)]
@@ -128,6 +129,16 @@ impl GenerateArgs {
         options.split =
             causal_arm_bag::SplitLimits::from_ros2_units(self.max_bag_size, self.max_bag_duration);
         Ok(options)
+    }
+}
+
+/// Parses `--seed` as every node parses its `seed` parameter, so that a seed the nodes
+/// would refuse is refused here with the same words, before any work starts.
+fn seed_value(raw: &str) -> Result<u64, String> {
+    let spec = causal_arm_node::run_param_spec("seed").map_err(|e| e.to_string())?;
+    match spec.parse(raw).map_err(|e| e.to_string())? {
+        causal_arm_node::ParamValue::Integer(v) => u64::try_from(v).map_err(|e| e.to_string()),
+        other => Err(format!("seed: expected an integer, got {other}")),
     }
 }
 

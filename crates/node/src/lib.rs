@@ -19,5 +19,6 @@ pub mod runtime;
 pub use env::{DiscoveryRange, EnvError, RosEnv};
 pub use node::{NodeError, RosNode};
 pub use params::{
-    ParamError, ParamKind, ParamSpec, ParamValue, Params, RosArgs, server_param_specs,
+    ParamError, ParamKind, ParamSpec, ParamValue, Params, RosArgs, run_param_spec,
+    server_param_specs,
 };

@@ -134,6 +134,31 @@ impl ParamSpec {
         self
     }
 
+    /// Parses and checks a raw value (`-p name:=raw`) as the node does: the one verdict
+    /// on a parameter's value, for the node and for a command-line option alike.
+    pub fn parse(&self, raw: &str) -> Result<ParamValue, ParamError> {
+        parse_value(self, raw)
+    }
+
+    /// The range error for `value`; an integer parameter's bounds as the int64 bounds its
+    /// descriptor declares (2⁶³ − 1, not the f64 2⁶³).
+    fn out_of_range(&self, value: String) -> ParamError {
+        let (min, max) = self.range.unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+        let (min, max) = match self.default {
+            ParamValue::Integer(_) => (
+                (min.ceil().max(i64::MIN as f64) as i64).to_string(),
+                (max.floor().min(i64::MAX as f64) as i64).to_string(),
+            ),
+            _ => (min.to_string(), max.to_string()),
+        };
+        ParamError::OutOfRange {
+            name: self.name.to_owned(),
+            value,
+            min,
+            max,
+        }
+    }
+
     /// Names the values a string parameter takes.
     pub fn with_choices(mut self, choices: impl IntoIterator<Item = impl Into<String>>) -> Self {
         self.choices = choices.into_iter().map(Into::into).collect();
@@ -206,6 +231,17 @@ pub fn server_param_specs(server: &str) -> Result<Vec<ParamSpec>, GraphError> {
     Ok(decl.params.iter().map(ParamSpec::from).collect())
 }
 
+/// Run parameter `name` (launch_scripts/graph.toml `[[run_params]]`), as every node of the
+/// graph declares it.
+pub fn run_param_spec(name: &str) -> Result<ParamSpec, GraphError> {
+    let graph = causal_arm_protocol::graph::graph()?;
+    let decl = graph.run_param(name).ok_or_else(|| GraphError {
+        source_name: "the graph file".into(),
+        problem: format!("it declares no run parameter {name}"),
+    })?;
+    Ok(ParamSpec::from(decl))
+}
+
 /// Every node has `use_sim_time`, as in ROS 2.
 pub fn use_sim_time_spec() -> ParamSpec {
     ParamSpec::new(
@@ -243,12 +279,12 @@ pub enum ParamError {
     OutOfRange {
         /// Parameter name.
         name: String,
-        /// Parsed value.
-        value: f64,
-        /// Lower bound.
-        min: f64,
+        /// The value as given (an integer beyond int64 has no other form).
+        value: String,
+        /// Lower bound (an integer parameter's as an integer).
+        min: String,
         /// Upper bound.
-        max: f64,
+        max: String,
     },
     /// A `--ros-args` item is malformed or not supported.
     #[error("invalid --ros-args: {0}")]
@@ -446,7 +482,14 @@ fn parse_value(spec: &ParamSpec, raw: &str) -> Result<ParamValue, ParamError> {
             "false" => ParamValue::Bool(false),
             _ => return Err(wrong()),
         },
-        ParamKind::Integer => ParamValue::Integer(text.parse().map_err(|_| wrong())?),
+        ParamKind::Integer => match text.parse() {
+            Ok(v) => ParamValue::Integer(v),
+            // An integer beyond int64 (a u64 seed) is out of any range, not of the wrong type.
+            Err(_) if text.parse::<i128>().is_ok() => {
+                return Err(spec.out_of_range(text.to_owned()));
+            }
+            Err(_) => return Err(wrong()),
+        },
         ParamKind::Double => ParamValue::Double(parse_finite(text).ok_or_else(wrong)?),
         ParamKind::String => ParamValue::String(unquote(text).to_owned()),
         ParamKind::DoubleArray => {
@@ -481,12 +524,7 @@ fn parse_value(spec: &ParamSpec, raw: &str) -> Result<ParamValue, ParamError> {
             _ => Vec::new(),
         };
         if let Some(bad) = numbers.into_iter().find(|v| *v < min || *v > max) {
-            return Err(ParamError::OutOfRange {
-                name: spec.name.to_owned(),
-                value: bad,
-                min,
-                max,
-            });
+            return Err(spec.out_of_range(bad.to_string()));
         }
     }
     Ok(value)
@@ -654,6 +692,15 @@ mod tests {
         assert!(matches!(err, ParamError::OutOfRange { .. }), "{err}");
         let err = Params::resolve("n", &specs(), &[("sigma".into(), "nan".into())]).unwrap_err();
         assert!(matches!(err, ParamError::WrongType { .. }), "{err}");
+        let seed = ParamSpec::new("seed", ParamValue::Integer(0), "").with_range(0.0, 9.3e18);
+        assert_eq!(
+            seed.parse("18446744073709551615").unwrap_err().to_string(),
+            "parameter \"seed\" = 18446744073709551615 is outside its range [0, 9223372036854775807]"
+        );
+        assert_eq!(
+            seed.parse("-1").unwrap_err().to_string(),
+            "parameter \"seed\" = -1 is outside its range [0, 9223372036854775807]"
+        );
     }
 
     #[test]

@@ -1,7 +1,7 @@
 #!/bin/bash
 # The dynamic arm's verdicts against truths at four effect sizes (run from the repo root).
 set -e
-B=target/release/causal-arm; D=target/dyn/exp2_50k
+B=${CAUSAL_ARM_BIN:-target/release/causal-arm}; D=target/dyn/exp2_50k
 for action in realized commanded; do
   $B discover --bag $D/bag --action $action --out $D/discover_$action > /dev/null
   for K in 0 0.01 0.03 0.1; do

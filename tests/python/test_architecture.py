@@ -127,3 +127,33 @@ def test_the_explain_pipeline_is_assembled_once():
         for assembled in ("shap_and_cai_claims", "score_claims", "calibrated_relevance", "std::fs::write",
                           "write_all("):
             assert assembled not in text, f"{front} assembles {assembled} itself"
+
+
+def project_sources():
+    """The project's own Rust sources outside tests (tests/ folders and tests.rs modules);
+    generated code lives in OUT_DIR, not here, and the vendored forks under patches/."""
+    for base in ("crates", "nodes", "msgs"):
+        for path in sorted((REPO / base).rglob("*.rs")):
+            if "tests" in path.relative_to(REPO).parts or path.name == "tests.rs":
+                continue
+            yield path
+
+
+def test_no_source_file_over_600_lines_and_no_function_over_100():
+    """Small pieces a newcomer can read: a file of at most 600 lines, a function of at most
+    100 (from its `fn` line to the closing brace at the same indentation)."""
+    fn = re.compile(r"^(\s*)(pub(\([a-z]+\))? )?(async )?(const )?(unsafe )?fn \w+")
+    long_files, long_functions = [], []
+    for path in project_sources():
+        lines = path.read_text().splitlines()
+        where = path.relative_to(REPO)
+        if len(lines) > 600:
+            long_files.append(f"{where}: {len(lines)} lines")
+        for i, line in enumerate(lines):
+            m = fn.match(line)
+            if not m or line.rstrip().endswith(";"):
+                continue
+            end = next((j for j in range(i + 1, len(lines)) if lines[j] == m.group(1) + "}"), i)
+            if end - i + 1 > 100:
+                long_functions.append(f"{where}:{i + 1}: {end - i + 1} lines")
+    assert not long_files and not long_functions, long_files + long_functions

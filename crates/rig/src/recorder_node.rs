@@ -14,7 +14,7 @@ use causal_arm_datagen::{BagSink, StepSink, validate};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
-use causal_arm_node::{RosArgs, RosNode, qos};
+use causal_arm_node::{Params, RosArgs, RosNode, qos};
 use causal_arm_protocol::{LatchedMessages, StepJoiner, time_from_ns, topics};
 
 use crate::feed::{drain_or_wait, refusal_summary};
@@ -143,6 +143,35 @@ impl Acknowledger {
 /// up; at thousands of steps per second it takes several steps per wake-up.
 const GATHER: Duration = Duration::from_millis(1);
 
+/// Names the steps a run leaves unwritten and what the first of them lacks (`latched`: the
+/// latched messages still missing, which every step waits for).
+fn warn_of_unwritten_steps(joiner: &StepJoiner<RecordParts>, latched: Option<Vec<&'static str>>) {
+    if let Some((stamp, mut missing)) = joiner.first_missing() {
+        missing.extend(latched.unwrap_or_default());
+        tracing::warn!(
+            "{} step(s) not written (the first, at {stamp} ns, lacks {})",
+            joiner.pending(),
+            missing.join(", ")
+        );
+    }
+}
+
+/// The bag directory and the run to record in it, from the recorder's parameters, checked
+/// before anything is opened.
+fn recording_of(params: &Params) -> anyhow::Result<(String, RunParams)> {
+    let output = params.string("output").to_owned();
+    if output.is_empty() {
+        bail!("parameter \"output\" is required: --ros-args -p output:=bags/NAME");
+    }
+    let mut run = RunParams::from_params(params, &output)?;
+    run.options.split = causal_arm_datagen::SplitLimits::from_ros2_units(
+        params.integer("max_bag_size") as u64,
+        params.integer("max_bag_duration") as u64,
+    );
+    validate(&run.options)?;
+    Ok((output, run))
+}
+
 /// Runs the recorder node until every step is written or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     run_composed(ros_args, None)
@@ -152,16 +181,7 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
 pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::Result<()> {
     let specs = node_param_specs("causal_arm_recorder")?;
     let mut node = RosNode::new("causal_arm_recorder", &specs, ros_args)?;
-    let output = node.params().string("output").to_owned();
-    if output.is_empty() {
-        bail!("parameter \"output\" is required: --ros-args -p output:=bags/NAME");
-    }
-    let mut run = RunParams::from_params(node.params(), &output)?;
-    run.options.split = causal_arm_datagen::SplitLimits::from_ros2_units(
-        node.params().integer("max_bag_size") as u64,
-        node.params().integer("max_bag_duration") as u64,
-    );
-    validate(&run.options)?;
+    let (output, run) = recording_of(node.params())?;
     let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let stop = stop_flag();
     let screen = Rc::new(Screen::new(&mut node)?);
@@ -241,17 +261,7 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
         }
     }
     tracing::info!("recorder {}", refusal_summary(&feeds, &joiner));
-    if let Some((stamp, mut missing)) = joiner.first_missing() {
-        if !have_latched {
-            // Complete steps wait for the latched messages the bag holds before them.
-            missing.extend(latched.missing());
-        }
-        tracing::warn!(
-            "{} step(s) not written (the first, at {stamp} ns, lacks {})",
-            joiner.pending(),
-            missing.join(", ")
-        );
-    }
+    warn_of_unwritten_steps(&joiner, (!have_latched).then(|| latched.missing()));
     let last_written = sink.last_step_stamp();
     let summary = sink.finish()?;
     // Every step has landed now: acknowledge the last one, and let reliable delivery reach

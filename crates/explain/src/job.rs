@@ -278,11 +278,15 @@ fn load(request: &ExplainRequest, truth: Option<&Truth>) -> Result<(Explainer, D
             explainer.state_names(),
         )?;
     }
-    let action = match request.action {
-        Some(action) => action,
-        None => trained_action_source(&request.model, &request.name)
-            .map_or(Ok(ActionSource::Realized), |text| text.parse())
-            .map_err(ExplainError::Options)?,
+    // The source the model was trained on; for a model without a training record, the
+    // bags' own default (commanded on the dynamic arm's), as `train` and `discover` take.
+    let action = match (
+        request.action,
+        trained_action_source(&request.model, &request.name),
+    ) {
+        (Some(action), _) => action,
+        (None, Some(text)) => text.parse().map_err(ExplainError::Options)?,
+        (None, None) => ActionSource::of_bags(&request.bags)?,
     };
     let cache = Cache::new(request.cache.clone().unwrap_or_else(Cache::default_dir));
     let (data, _) = load_bags(

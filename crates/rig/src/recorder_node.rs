@@ -29,6 +29,8 @@ struct LatchedFeed {
     tf_static: Inlet<TFMessage>,
     got_description: Option<RosString>,
     got_tf_static: Option<TFMessage>,
+    /// Both were handed out by [`LatchedFeed::take`]: nothing is missing any more.
+    delivered: bool,
 }
 
 impl LatchedFeed {
@@ -38,6 +40,7 @@ impl LatchedFeed {
             tf_static: Inlet::open(node, port, topics::TF_STATIC, qos::latched())?,
             got_description: None,
             got_tf_static: None,
+            delivered: false,
         })
     }
 
@@ -50,10 +53,13 @@ impl LatchedFeed {
             self.got_tf_static = Some(t);
         }
         match (&self.got_description, &self.got_tf_static) {
-            (Some(_), Some(_)) => Some(LatchedMessages {
-                robot_description: self.got_description.take()?,
-                tf_static: self.got_tf_static.take()?,
-            }),
+            (Some(_), Some(_)) => {
+                self.delivered = true;
+                Some(LatchedMessages {
+                    robot_description: self.got_description.take()?,
+                    tf_static: self.got_tf_static.take()?,
+                })
+            }
             _ => None,
         }
     }
@@ -62,6 +68,9 @@ impl LatchedFeed {
     /// report of a run that ends waiting.
     fn missing(&self) -> Vec<&'static str> {
         let mut missing = Vec::new();
+        if self.delivered {
+            return missing;
+        }
         if self.got_description.is_none() {
             missing.push(topics::ROBOT_DESCRIPTION);
         }
@@ -143,11 +152,29 @@ impl Acknowledger {
 /// up; at thousands of steps per second it takes several steps per wake-up.
 const GATHER: Duration = Duration::from_millis(1);
 
+/// Why a run ended with nothing received for `timeout` after `written` of `total` steps;
+/// `waiting`: the latched topics still missing and the steps waiting for them.
+fn stall_error(
+    timeout: Duration,
+    (written, total): (u64, u64),
+    waiting: Option<(Vec<&'static str>, usize)>,
+) -> anyhow::Error {
+    match waiting {
+        None => anyhow::anyhow!(
+            "nothing received for {timeout:?} after {written} of {total} steps; bag finalized with the complete steps"
+        ),
+        Some((missing, pending)) => anyhow::anyhow!(
+            "the latched {} did not arrive for {timeout:?} ({pending} steps waiting for it); bag finalized without steps",
+            missing.join(" and ")
+        ),
+    }
+}
+
 /// Names the steps a run leaves unwritten and what the first of them lacks (`latched`: the
 /// latched messages still missing, which every step waits for).
-fn warn_of_unwritten_steps(joiner: &StepJoiner<RecordParts>, latched: Option<Vec<&'static str>>) {
+fn warn_of_unwritten_steps(joiner: &StepJoiner<RecordParts>, latched: Vec<&'static str>) {
     if let Some((stamp, mut missing)) = joiner.first_missing() {
-        missing.extend(latched.unwrap_or_default());
+        missing.extend(latched);
         tracing::warn!(
             "{} step(s) not written (the first, at {stamp} ns, lacks {})",
             joiner.pending(),
@@ -245,23 +272,21 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
             // one wake-up takes several steps instead of every sample waking this thread.
             std::thread::sleep(GATHER);
         } else if last_activity.elapsed() > timeout {
-            result = Err(match have_latched {
-                true => anyhow::anyhow!(
-                    "nothing received for {timeout:?} after {written} of {total} steps; bag finalized with the complete steps"
-                ),
-                false => anyhow::anyhow!(
-                    "the latched {} did not arrive for {timeout:?} ({} steps waiting for it); bag finalized without steps",
-                    latched.missing().join(" and "),
-                    joiner.pending()
-                ),
-            });
+            let waiting = (!have_latched).then(|| (latched.missing(), joiner.pending()));
+            result = Err(stall_error(timeout, (written, total), waiting));
             break;
         } else {
             ack.repeat_if_due();
         }
     }
     tracing::info!("recorder {}", refusal_summary(&feeds, &joiner));
-    warn_of_unwritten_steps(&joiner, (!have_latched).then(|| latched.missing()));
+    // A resumed bag holds the latched messages already: none is missing.
+    let latched_missing = if have_latched {
+        Vec::new()
+    } else {
+        latched.missing()
+    };
+    warn_of_unwritten_steps(&joiner, latched_missing);
     let last_written = sink.last_step_stamp();
     let summary = sink.finish()?;
     // Every step has landed now: acknowledge the last one, and let reliable delivery reach

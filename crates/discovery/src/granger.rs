@@ -380,8 +380,14 @@ impl DataTest {
         decision(
             Verdict::Undecided,
             format!(
-                "not significant in the data (p = {:.2}, effect std {:.1e} vs residual {:.1e})",
-                t.p_value, t.effect, t.rms_without
+                "not significant in the data (p = {:.2}, effect std {:.1e} vs residual {:.1e}{})",
+                t.p_value,
+                t.effect,
+                t.rms_without,
+                context.map_or(String::new(), |c| format!(
+                    "; within context {c}: p = {:.1e}",
+                    best.p_value
+                ))
             ),
             "more transitions (the data test), or a forward model whose error on this feature is below the effect",
         )

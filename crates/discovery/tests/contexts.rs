@@ -120,6 +120,14 @@ fn an_effect_confined_to_a_context_is_found_within_it_and_missed_over_all_rows()
         }
     }
     assert!(claims.drives[0][O_X], "a0 moves the held cube");
+    // An undecided edge on an intermittent feature names its strongest context too.
+    let placebo = test.decide(1, O_X);
+    assert_eq!(placebo.verdict, Verdict::Undecided, "{placebo:?}");
+    assert!(
+        placebo.reason.contains("within context"),
+        "{}",
+        placebo.reason
+    );
     assert!(
         claims.rule.contains("within each context"),
         "{}",

@@ -39,7 +39,8 @@ pub struct Process {
 
 impl Process {
     /// Starts `program` with `args`. The child gets SIGTERM (and finalizes, as on Ctrl-C)
-    /// if this process dies, even by SIGKILL, so no node outlives its launcher.
+    /// if this process dies, even by SIGKILL, so no node outlives its launcher; it starts
+    /// with SIGINT's default disposition, whatever this process inherited.
     pub fn spawn(name: &str, program: &Path, args: &[String]) -> anyhow::Result<Self> {
         Self::spawn_env(name, program, args, &[])
     }
@@ -54,10 +55,18 @@ impl Process {
         let mut command = Command::new(program);
         command.args(args).stdin(Stdio::null());
         command.envs(env.iter().map(|(k, v)| (k, v)));
-        // SAFETY: prctl is async-signal-safe and touches only the child being started.
+        // SAFETY: prctl and signal are async-signal-safe and touch only the child being
+        // started.
         unsafe {
             command.pre_exec(|| {
                 if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                // The run is stopped by SIGINT, so every node must be able to take it, even
+                // when this launcher inherited it ignored (a background job of a
+                // non-interactive shell, nohup): a shell-script node cannot trap a signal
+                // ignored on entry.
+                if libc::signal(libc::SIGINT, libc::SIG_DFL) == libc::SIG_ERR {
                     return Err(std::io::Error::last_os_error());
                 }
                 Ok(())

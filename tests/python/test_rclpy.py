@@ -380,10 +380,15 @@ def test_a_late_rclpy_node_gets_the_latched_robot_description_and_rosout(distro,
             peer.subscribe(topic="/rosout", type="rcl_interfaces/msg/Log",
                            qos={"transient_local": True, "depth": 1000})
             description = peer.take(topic="/robot_description", count=1, timeout=20)
-            logs = peer.take(topic="/rosout", count=1, timeout=20)
+            # Other nodes of the domain (this module's trainer) keep their logs durable too,
+            # and theirs may arrive first: wait for the simulator's.
+            logs, deadline = [], time.monotonic() + 20
+            while (not any(log["msg"]["name"] == "causal_arm_sim" for log in logs)
+                   and time.monotonic() < deadline):
+                logs += peer.take(topic="/rosout", count=1, timeout=1)
         assert sim.poll() is None, sim.log()[-3000:]
     assert len(description) == 1 and "<robot" in description[0]["msg"]["data"], description[:1]
-    assert any(log["msg"]["name"] == "causal_arm_sim" for log in logs), logs[:3]
+    assert any(log["msg"]["name"] == "causal_arm_sim" for log in logs), sorted({log["msg"]["name"] for log in logs})
 
 
 def test_rclpy_lists_the_trainers_services_with_their_types(trainer_and_peer):

@@ -95,3 +95,16 @@ def test_a_seed_beyond_int64_gets_one_verdict_from_the_cli_and_every_node(run_cl
     # The largest seed both take is the same one.
     r = run_cli("generate", "exp1", "--steps", "10", "--seed", str(2**63 - 1), "--out", tmp_path / "ok")
     assert r.returncode == 0, r.stderr
+
+
+def test_kappa_0_gets_one_verdict_from_the_cli_and_the_node(run_cli, causal_arm_bin, private_netns):
+    """`--kappa 0` and `-p kappa:=0` are checked by the one check of the explainer's kappa,
+    before anything is read: no model or bag exists here."""
+    import subprocess
+    message = 'parameter "kappa" = 0 is outside its range [0.000001, 1000000]'
+    r = run_cli("explain", "--model", "no-model", "--bag", "no-bag", "--kappa", "0")
+    assert r.returncode != 0 and message in r.stderr, r.stderr
+    r = subprocess.run([str(causal_arm_bin.parent / "causal_arm_explainer"), "--ros-args",
+                        "-p", "model_dir:=no-model", "-p", "bag:=no-bag", "-p", "kappa:=0"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and message in r.stderr, r.stderr

@@ -6,19 +6,16 @@ use std::path::PathBuf;
 use causal_arm_dataset::ActionSource;
 use causal_arm_explain::job::{ExplainMethod, ExplainRequest, Outcome, ShapOutcome};
 use causal_arm_explain::{BackgroundKind, multistep};
-use causal_arm_protocol::graph::server_default_text;
+// The explainer node's defaults of the settings `explain` shares with it (their
+// declarations in launch_scripts/graph.toml), so the command and the node cannot disagree.
+// The method is not shared: the command defaults to the paper's Deep SHAP, the node to
+// Kernel SHAP.
+use causal_arm_params::explainer;
 use causal_arm_truth::score_table;
 use clap::Args;
 
 use crate::choice::choice;
 use crate::progress::Counter;
-
-/// The explainer node's default of a setting `explain` shares with it (its declaration in
-/// launch_scripts/graph.toml), so the command and the node cannot disagree. The method
-/// is not shared: the command defaults to the paper's Deep SHAP, the node to Kernel SHAP.
-fn explainer_default(param: &str) -> &'static str {
-    server_default_text("causal_arm_explainer", param)
-}
 
 /// Arguments of `causal-arm explain`.
 #[derive(Debug, Args)]
@@ -30,7 +27,7 @@ pub struct ExplainArgs {
     #[arg(long)]
     model: PathBuf,
     /// Forward model file stem in the model directory.
-    #[arg(long, default_value = explainer_default("forward_model"))]
+    #[arg(long, default_value = explainer::forward_model::default_text())]
     name: String,
     /// Bag(s) the observations and the background are drawn from (the paper: the
     /// training data).
@@ -42,7 +39,7 @@ pub struct ExplainArgs {
     #[arg(long, default_value = "deep", value_parser = choice::<ExplainMethod>())]
     method: ExplainMethod,
     /// Observations to explain (the paper: 200).
-    #[arg(long, default_value = explainer_default("samples"))]
+    #[arg(long, default_value = explainer::samples::default_text())]
     samples: usize,
     /// Background rows (deep, default 100) or k-means centres (kernel, default 50).
     #[arg(long)]
@@ -57,14 +54,14 @@ pub struct ExplainArgs {
     kernel_samples: Option<usize>,
     /// Relevance threshold: an action drives a state feature when its mean |SHAP| reaches
     /// this fraction of the feature's standard deviation.
-    #[arg(allow_negative_numbers = true, long, default_value = explainer_default("threshold"))]
+    #[arg(allow_negative_numbers = true, long, default_value = explainer::threshold::default_text())]
     threshold: f64,
     /// Action columns: realized or commanded (default: what the model was trained on,
     /// from metrics.json, else realized).
     #[arg(long, value_parser = choice::<ActionSource>())]
     action: Option<ActionSource>,
     /// Seed of the observation/background draws and of Kernel SHAP's sampler.
-    #[arg(long, default_value = explainer_default("seed"))]
+    #[arg(long, default_value = explainer::seed::default_text())]
     seed: u64,
     /// Worker threads (default: all cores).
     #[arg(long)]
@@ -81,10 +78,12 @@ pub struct ExplainArgs {
     #[arg(long)]
     truth: Option<PathBuf>,
     /// Calibrated rule: an edge needs the lower bound of mean effect / model error above this.
-    #[arg(allow_negative_numbers = true, long, default_value = explainer_default("kappa"))]
+    /// (Checked as the explainer node checks its `kappa`, with the same words.)
+    #[arg(allow_negative_numbers = true, long, default_value = explainer::kappa::default_text(),
+          value_parser = explainer::kappa::parse)]
     kappa: f64,
     /// CAI: draws of each action from its marginal per observation.
-    #[arg(long, default_value = explainer_default("resamples"))]
+    #[arg(long, default_value = explainer::resamples::default_text())]
     resamples: usize,
     /// With --method cai: attribute a(t) on s(t+1) … s(t+K) through the forward model
     /// chained K steps (1–10) with the recorded actions after a(t); writes multistep.json
@@ -327,15 +326,15 @@ mod tests {
         assert_eq!(a.kappa, influence.kappa);
         assert_eq!(a.resamples, influence.resamples);
         assert_eq!(a.seed, 0);
-        for param in [
-            "forward_model",
-            "samples",
-            "threshold",
-            "kappa",
-            "resamples",
-            "seed",
+        for text in [
+            explainer::forward_model::default_text(),
+            explainer::samples::default_text(),
+            explainer::threshold::default_text(),
+            explainer::kappa::default_text(),
+            explainer::resamples::default_text(),
+            explainer::seed::default_text(),
         ] {
-            assert!(!explainer_default(param).is_empty(), "{param}");
+            assert!(!text.is_empty());
         }
     }
 }

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use causal_arm_datagen::{GenerateOptions, generate, generate_shards, shard_options};
-use causal_arm_protocol::graph::{node_default_text, run_default_text};
+use causal_arm_params::{recorder, run};
 use causal_arm_protocol::{Experiment, Profile, RunPlan};
 use causal_arm_sim::ArmMode;
 use clap::Args;
@@ -34,7 +34,7 @@ pub struct GenerateArgs {
     #[arg(value_parser = choice::<Experiment>())]
     experiment: Experiment,
     /// paper (the paper's dataset size) or quick (a demo in about a minute).
-    #[arg(long, default_value = run_default_text("profile"), value_parser = choice::<Profile>())]
+    #[arg(long, default_value = run::profile::default_text(), value_parser = choice::<Profile>())]
     profile: Profile,
     /// Override the number of steps (exp1) — must be positive.
     #[arg(long, allow_negative_numbers = true)]
@@ -44,7 +44,7 @@ pub struct GenerateArgs {
     episodes: Option<i64>,
     /// Seed of simulator and babbler (an int64 ROS parameter of every node: at most
     /// 2^63 − 1).
-    #[arg(long, default_value = run_default_text("seed"), value_parser = seed_value)]
+    #[arg(long, default_value = run::seed::default_text(), value_parser = seed_value)]
     seed: u64,
     /// Bag directory to write (refused if it already holds a bag, unless --overwrite).
     #[arg(long)]
@@ -61,30 +61,30 @@ pub struct GenerateArgs {
     /// as `ros2 bag record --max-bag-size`; 0 writes one file. Each closed file is
     /// finished at once; every reader takes the files as one bag.
     #[arg(long, value_name = "BYTES",
-          default_value = node_default_text("causal_arm_recorder", "max_bag_size"))]
+          default_value = recorder::max_bag_size::default_text())]
     max_bag_size: u64,
     /// Start the bag's next file before a message more than this many seconds (of the
     /// run's clock) after the open file's first, as `ros2 bag record --max-bag-duration`;
     /// 0 writes one file.
     #[arg(long, value_name = "SECONDS",
-          default_value = node_default_text("causal_arm_recorder", "max_bag_duration"))]
+          default_value = recorder::max_bag_duration::default_text())]
     max_bag_duration: u64,
     /// Standard deviation of the exp1 joint targets, rad.
-    #[arg(allow_negative_numbers = true, long, default_value = run_default_text("sigma"))]
+    #[arg(allow_negative_numbers = true, long, default_value = run::sigma::default_text())]
     sigma: f64,
     /// Scale of the URDF joint velocity limits (1 = the real iiwa; the paper's arm moved
     /// faster, see docs/RESULTS.md).
-    #[arg(allow_negative_numbers = true, long, default_value = run_default_text("velocity_scale"))]
+    #[arg(allow_negative_numbers = true, long, default_value = run::velocity_scale::default_text())]
     velocity_scale: f64,
     /// How the simulator moves the arm: kinematic (links placed by forward kinematics:
     /// exact and fast, but they pass through the table) or dynamic (a multibody under
     /// gravity, moved by motors within the URDF velocities and efforts: it stalls on the table).
-    #[arg(long, default_value = run_default_text("arm"), value_parser = choice::<ArmMode>())]
+    #[arg(long, default_value = run::arm::default_text(), value_parser = choice::<ArmMode>())]
     arm: ArmMode,
     /// Exp 2: move while switching the magnet (default), so the data can show that the
     /// magnet does not move the joints; `false` holds the arm still at every switch, as
     /// bags made before this default did (see docs/RESULTS.md).
-    #[arg(long, default_value = run_default_text("move_while_switching"),
+    #[arg(long, default_value = run::move_while_switching::default_text(),
           action = clap::ArgAction::Set, num_args = 0..=1,
           default_missing_value = "true", value_name = "BOOL")]
     pub move_while_switching: bool,
@@ -122,7 +122,7 @@ impl GenerateArgs {
                 self.velocity_scale
             );
         }
-        within_graph_range("velocity_scale", self.velocity_scale)?;
+        within_graph_range(run::velocity_scale::NAME, self.velocity_scale)?;
         options.sim.velocity_scale = self.velocity_scale;
         options.sim.arm = self.arm;
         options.exp2.move_while_switching = self.move_while_switching;
@@ -135,18 +135,19 @@ impl GenerateArgs {
 /// Parses `--seed` as every node parses its `seed` parameter, so that a seed the nodes
 /// would refuse is refused here with the same words, before any work starts.
 fn seed_value(raw: &str) -> Result<u64, String> {
-    let spec = causal_arm_node::run_param_spec("seed").map_err(|e| e.to_string())?;
-    match spec.parse(raw).map_err(|e| e.to_string())? {
-        causal_arm_node::ParamValue::Integer(v) => u64::try_from(v).map_err(|e| e.to_string()),
-        other => Err(format!("seed: expected an integer, got {other}")),
-    }
+    let seed = run::seed::parse(raw).map_err(|e| e.to_string())?;
+    // The declared range keeps it non-negative.
+    u64::try_from(seed).map_err(|e| e.to_string())
 }
 
 /// Refuses `value` outside the range launch_scripts/graph.toml declares for run parameter
 /// `name`, as the nodes do for the same parameter.
 fn within_graph_range(name: &str, value: f64) -> anyhow::Result<()> {
-    let graph = causal_arm_protocol::graph::graph()?;
-    if let Some([lo, hi]) = graph.run_param(name).and_then(|p| p.range)
+    let spec = causal_arm_params::RunParams::specs()?
+        .into_iter()
+        .find(|s| s.name == name)
+        .ok_or_else(|| anyhow::anyhow!("the graph file declares no run parameter {name}"))?;
+    if let Some((lo, hi)) = spec.range
         && !(lo..=hi).contains(&value)
     {
         anyhow::bail!(

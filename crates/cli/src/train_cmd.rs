@@ -11,18 +11,14 @@ use causal_arm_models::job::{SavedRun, train_and_save};
 use causal_arm_models::problems::FmTarget;
 use causal_arm_models::structure::{Auxiliary, FoundGraph};
 use causal_arm_models::{Figure, LrSchedule, ModelKind, ModelRequest, Profile, TrainOptions};
-use causal_arm_protocol::graph::server_default_text;
+// The trainer node's defaults of the settings `train` shares with it (their declarations
+// in launch_scripts/graph.toml), so the command and the node cannot disagree.
+use causal_arm_params::trainer;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::choice::choice;
 use crate::progress::PLAIN_EVERY;
-
-/// The trainer node's default of a setting `train` shares with it (its declaration in
-/// launch_scripts/graph.toml), so the command and the node cannot disagree.
-fn trainer_default(param: &str) -> &'static str {
-    server_default_text("causal_arm_trainer", param)
-}
 
 /// Arguments of `causal-arm train`.
 #[derive(Debug, Args)]
@@ -35,16 +31,16 @@ pub struct TrainArgs {
     bags: Vec<PathBuf>,
     /// fm, im-mono, im-pre, ablation, fm-factored (needs --graph), or all (every model of
     /// the bag's experiment).
-    #[arg(long, default_value = trainer_default("models"), value_parser = choice::<ModelRequest>())]
+    #[arg(long, default_value = trainer::models::default_text(), value_parser = choice::<ModelRequest>())]
     model: ModelRequest,
     /// Epoch budgets: paper (60-4,000 epochs) or quick.
-    #[arg(long, default_value = trainer_default("profile"), value_parser = choice::<Profile>())]
+    #[arg(long, default_value = trainer::profile::default_text(), value_parser = choice::<Profile>())]
     profile: Profile,
     /// Epochs of every network (overrides the profile).
     #[arg(long)]
     epochs: Option<usize>,
     /// Cross-validation folds.
-    #[arg(long, default_value = trainer_default("folds"))]
+    #[arg(long, default_value = trainer::folds::default_text())]
     folds: usize,
     /// Run only the first N folds (each still holds out 1/folds of the rows).
     #[arg(long)]
@@ -74,14 +70,14 @@ pub struct TrainArgs {
     /// Learning-rate schedule: constant (the paper's), cosine (decay to 1 % over the
     /// epochs) or cosine:FLOOR. Cosine wins on paper-size runs, constant on short ones
     /// (docs/RESULTS.md, "Learning-rate schedule").
-    #[arg(long, default_value = trainer_default("lr_schedule"))]
+    #[arg(long, default_value = trainer::lr_schedule::default_text())]
     lr_schedule: String,
     /// Measure the held-out MAE every N epochs: a learning curve per network, printed and
     /// stored in metrics.json (costs one pass over the fold's test rows each time).
     #[arg(long)]
     eval_every: Option<usize>,
     /// Seed of folds, weights and shuffles.
-    #[arg(long, default_value = trainer_default("seed"))]
+    #[arg(long, default_value = trainer::seed::default_text())]
     seed: u64,
     /// Dataset cache directory (default: $CAUSAL_ARM_CACHE or ~/.cache/causal-arm).
     #[arg(long)]

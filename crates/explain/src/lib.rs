@@ -13,6 +13,7 @@ pub mod decide;
 pub mod influence;
 pub mod job;
 pub mod multistep;
+mod node_request;
 pub mod output;
 pub mod report;
 pub mod serve;

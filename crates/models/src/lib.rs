@@ -12,6 +12,7 @@ pub mod fit;
 pub mod job;
 pub mod mental;
 pub mod model_file;
+pub mod node_job;
 mod options;
 pub mod problems;
 mod report;

@@ -18,7 +18,4 @@ pub mod runtime;
 
 pub use env::{DiscoveryRange, EnvError, RosEnv};
 pub use node::{NodeError, RosNode};
-pub use params::{
-    ParamError, ParamKind, ParamSpec, ParamValue, Params, RosArgs, run_param_spec,
-    server_param_specs,
-};
+pub use params::{ParamError, ParamKind, ParamSpec, ParamValue, Params, RosArgs};

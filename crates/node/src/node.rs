@@ -12,7 +12,7 @@ use thiserror::Error;
 
 use crate::env::{EnvError, RosEnv};
 use crate::logging;
-use crate::params::{ParamError, ParamSpec, Params, RosArgs};
+use crate::params::{Describe, ParamError, ParamSpec, Params, RosArgs, ToRos};
 use crate::qos;
 use causal_arm_security::SecurityMode;
 

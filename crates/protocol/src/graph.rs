@@ -36,6 +36,9 @@ pub struct GraphSpec {
     /// as they trust the node they replace.
     #[serde(default)]
     pub stand_ins: Vec<NodeDecl>,
+    /// The file it was read from, for errors found later.
+    #[serde(skip)]
+    source_name: String,
 }
 
 /// One node of the graph.
@@ -109,7 +112,7 @@ impl std::fmt::Display for ParamDefault {
 }
 
 /// Why a graph file is refused.
-#[derive(Debug, Clone, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("graph file {source_name}: {problem}")]
 pub struct GraphError {
     /// The file (or "embedded launch_scripts/graph.toml").
@@ -125,9 +128,15 @@ impl GraphSpec {
             source_name: source_name.to_owned(),
             problem,
         };
-        let spec: Self = toml::from_str(text).map_err(|e| bad(e.to_string()))?;
+        let mut spec: Self = toml::from_str(text).map_err(|e| bad(e.to_string()))?;
         spec.check().map_err(bad)?;
+        spec.source_name = source_name.to_owned();
         Ok(spec)
+    }
+
+    /// The file it was read from (or "embedded launch_scripts/graph.toml").
+    pub fn source_name(&self) -> &str {
+        &self.source_name
     }
 
     /// Reads `CAUSAL_ARM_GRAPH` if set, else the embedded file.
@@ -299,25 +308,6 @@ pub fn graph() -> Result<&'static GraphSpec, GraphError> {
     GRAPH.as_ref().map_err(GraphError::clone)
 }
 
-/// The embedded graph's default of run parameter `name`, as text (for `--help` defaults).
-/// The embedded file is checked by this crate's tests, so a missing name is a build bug.
-pub fn run_default_text(name: &str) -> &'static str {
-    default_text(RUN, name)
-}
-
-/// The embedded graph's default of parameter `param` of serving node `server`, as text
-/// (the default of the command-line option for the same setting). A missing name is a
-/// build bug, caught by the tests of the commands that ask.
-pub fn server_default_text(server: &str, param: &str) -> &'static str {
-    default_text(server, param)
-}
-
-/// The embedded graph's default of parameter `param` of run node `node`, as text (the
-/// default of the `launch` and `generate` option for the same setting).
-pub fn node_default_text(node: &str, param: &str) -> &'static str {
-    default_text(node, param)
-}
-
 /// The embedded graph's range of numeric parameter `param` of serving node `server`, so a
 /// library checks a setting against the bounds the node declares (`None`: no range).
 pub fn server_param_range(server: &str, param: &str) -> Option<[f64; 2]> {
@@ -327,16 +317,19 @@ pub fn server_param_range(server: &str, param: &str) -> Option<[f64; 2]> {
 /// Owner of the run parameters in the table of [`default_text`] (no node has this name).
 const RUN: &str = "";
 
-/// Every default of the graph, rendered once: (owner, parameter, text), the owner being
-/// [`RUN`] for a run parameter or the node's or server's name; "" for a name the graph lacks.
-fn default_text(owner: &str, param: &str) -> &'static str {
+/// The default of parameter `param` of `owner` ("" for a run parameter, else the node's,
+/// stand-in's or server's name) in the graph file in use, as text: a command-line option's
+/// default for the same setting (`--help` shows it). Every default is rendered once; ""
+/// for a name the graph lacks (the typed modules of `causal_arm_params` only ask for
+/// names the program was built with).
+pub fn default_text(owner: &str, param: &str) -> &'static str {
     static TEXTS: LazyLock<Vec<(String, String, String)>> = LazyLock::new(|| match graph() {
         Ok(g) => {
             let run = g.run_params.iter().map(|p| (RUN, p));
             let servers =
                 (g.servers.iter()).flat_map(|s| s.params.iter().map(|p| (s.name.as_str(), p)));
-            let nodes =
-                (g.nodes.iter()).flat_map(|n| n.params.iter().map(|p| (n.name.as_str(), p)));
+            let nodes = (g.nodes.iter().chain(&g.stand_ins))
+                .flat_map(|n| n.params.iter().map(|p| (n.name.as_str(), p)));
             run.chain(servers)
                 .chain(nodes)
                 .map(|(o, p)| (o.to_owned(), p.name.clone(), p.default.to_string()))
@@ -470,8 +463,8 @@ mod tests {
         assert_eq!(ParamDefault::Double(0.35).to_string(), "0.35");
         assert_eq!(ParamDefault::Integer(0).to_string(), "0");
         assert_eq!(ParamDefault::Bool(true).to_string(), "true");
-        assert_eq!(run_default_text("sigma"), "0.35");
-        assert_eq!(run_default_text("profile"), "quick");
+        assert_eq!(default_text(RUN, "sigma"), "0.35");
+        assert_eq!(default_text(RUN, "profile"), "quick");
         assert_eq!(run_default_f64("sigma"), 0.35);
         assert!(run_default_f64("profile").is_nan());
     }

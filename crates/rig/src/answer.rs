@@ -13,11 +13,40 @@ use causal_arm_protocol::{
     Command, SimState, StepJoiner, action_message, state_from_messages, topics,
 };
 
-use crate::RunParams;
+use crate::RunSetup;
 use crate::feed::{drain_or_wait, refusal_summary};
 use crate::intra::{IntraPort, Outlet};
 use crate::parts::{FeedSource, StateParts, state_feeds};
 use crate::screen::Screen;
+use causal_arm_node::params::{BabblerParams, ReacherParams};
+
+/// How a node answering the simulator waits for and trusts its peers: the parameters the
+/// babbler and the reacher both declare.
+#[derive(Debug, Clone)]
+pub struct Peers {
+    /// Give up when nothing arrives for this long.
+    pub timeout: Duration,
+    /// Wait for the recorder to read the actions too.
+    pub wait_for_recorder: bool,
+    /// The `trusted_publishers` setting.
+    pub trusted_publishers: String,
+}
+
+macro_rules! peers_of {
+    ($params:ty) => {
+        impl From<&$params> for Peers {
+            fn from(own: &$params) -> Self {
+                Self {
+                    timeout: Duration::from_secs_f64(own.timeout),
+                    wait_for_recorder: own.wait_for_recorder,
+                    trusted_publishers: own.trusted_publishers.clone(),
+                }
+            }
+        }
+    };
+}
+peers_of!(BabblerParams);
+peers_of!(ReacherParams);
 
 /// Where a state falls in the run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -39,14 +68,15 @@ pub struct StepPlace {
 pub fn answer_states(
     who: &str,
     (node, port): (&mut RosNode, Option<IntraPort<'_>>),
-    run: &RunParams,
+    run: &RunSetup,
+    peers: &Peers,
     start: u64,
     stop: &AtomicBool,
     mut choose: impl FnMut(&SimState, StepPlace) -> anyhow::Result<Command>,
 ) -> anyhow::Result<u64> {
-    let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+    let timeout = peers.timeout;
     let recorded = qos::recorded();
-    let screen = Rc::new(Screen::new(node)?);
+    let screen = Rc::new(Screen::new(node, &peers.trusted_publishers)?);
     let mut source = FeedSource {
         node,
         screen: &screen,
@@ -58,7 +88,7 @@ pub fn answer_states(
     // The simulator and, when the run is recorded, the recorder: an action written before
     // the recorder's reader matched would never reach the bag. Those composed with this
     // node take it in process.
-    let with_recorder = node.params().bool("wait_for_recorder");
+    let with_recorder = peers.wait_for_recorder;
     let declared = crate::expected_readers(topics::ACTION, with_recorder)?.max(1);
     let needed = declared.saturating_sub(actions.local_subscribers());
     if needed > 0 && !node.wait_for_subscribers(actions.dds(), needed, timeout, crate::SETTLE, stop)

@@ -7,7 +7,8 @@ use causal_arm_node::RosNode;
 
 use crate::answer::answer_states;
 use crate::intra::IntraPort;
-use crate::{RunParams, node_param_specs, stop_flag};
+use crate::{RunSetup, stop_flag};
+use causal_arm_node::params::{BabblerParams, RunParams};
 
 /// Runs the babbler node until it answered every step of the run or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
@@ -16,9 +17,9 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
 
 /// As [`run`], composed with other nodes of the graph in this process (`port`).
 pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::Result<()> {
-    let specs = node_param_specs("causal_arm_babbler")?;
-    let mut node = RosNode::new("causal_arm_babbler", &specs, ros_args)?;
-    let run = RunParams::from_params(node.params(), "")?;
+    let mut node = RosNode::new(BabblerParams::NODE, &BabblerParams::specs()?, ros_args)?;
+    let run = RunSetup::from_params(&RunParams::from_params(node.params())?, "")?;
+    let own = BabblerParams::from_params(node.params())?;
     validate(&run.options)?;
     let stop = stop_flag();
     // Resuming at a later step: the babbler as it was then (re-run with its simulator).
@@ -31,6 +32,7 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
         "babbler",
         (&mut node, port),
         &run,
+        &(&own).into(),
         start,
         &stop,
         |state, place| {

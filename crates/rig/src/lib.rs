@@ -28,7 +28,7 @@ pub mod recorder_node;
 pub mod screen;
 pub mod sim_node;
 
-pub use plan::{RunParams, expected_readers, node_param_specs};
+pub use plan::{RunSetup, expected_readers};
 
 /// Acknowledgement topic of the recorder (`rosgraph_msgs/msg/Clock`: the stamp of the
 /// last step it has written completely).

@@ -2,7 +2,7 @@
 //! [`GenerateOptions`] so the graph and `causal-arm generate` agree.
 
 use causal_arm_datagen::{GenerateOptions, Shard};
-use causal_arm_node::{ParamSpec, Params};
+use causal_arm_node::params::RunParams;
 use causal_arm_protocol::graph::graph;
 use causal_arm_protocol::{Experiment, Profile, RunPlan};
 
@@ -18,56 +18,34 @@ pub fn expected_readers(topic: &str, with_recorder: bool) -> anyhow::Result<usiz
         .count())
 }
 
-/// The ROS parameter declarations of `node`: the run's parameters and the node's own, as
-/// `launch_scripts/graph.toml` declares them.
-pub fn node_param_specs(node: &str) -> anyhow::Result<Vec<ParamSpec>> {
-    let graph = graph()?;
-    let decl = graph
-        .node(node)
-        .ok_or_else(|| anyhow::anyhow!("the graph file declares no node {node}"))?;
-    Ok(graph
-        .run_params
-        .iter()
-        .chain(&decl.params)
-        .map(ParamSpec::from)
-        .collect())
-}
-
-/// Validated run parameters.
+/// The run a node of the graph takes part in: its run parameters made into the options
+/// `generate` would use.
 #[derive(Debug, Clone)]
-pub struct RunParams {
+pub struct RunSetup {
     /// The options `generate` would use.
     pub options: GenerateOptions,
 }
 
-impl RunParams {
-    /// From resolved parameters; `out` is only used by the recorder.
-    pub fn from_params(params: &Params, out: &str) -> anyhow::Result<Self> {
-        let experiment: Experiment = params
-            .string("experiment")
-            .parse()
-            .map_err(anyhow::Error::msg)?;
-        let profile: Profile = params
-            .string("profile")
-            .parse()
-            .map_err(anyhow::Error::msg)?;
+impl RunSetup {
+    /// From the run's parameters; `out` is only used by the recorder.
+    pub fn from_params(run: &RunParams, out: &str) -> anyhow::Result<Self> {
+        let experiment: Experiment = run.experiment.parse().map_err(anyhow::Error::msg)?;
+        let profile: Profile = run.profile.parse().map_err(anyhow::Error::msg)?;
         let mut plan = RunPlan::for_profile(experiment, profile);
-        let steps = params.integer("steps");
-        let episodes = params.integer("episodes");
-        if steps > 0 {
-            plan.steps_per_episode = steps as u64;
+        // Declared ranges keep the counts and the seed non-negative.
+        if run.steps > 0 {
+            plan.steps_per_episode = run.steps as u64;
         }
-        if episodes > 0 {
-            plan.episodes = episodes as u64;
+        if run.episodes > 0 {
+            plan.episodes = run.episodes as u64;
         }
-        let mut options =
-            GenerateOptions::new(experiment, plan, params.integer("seed") as u64, out);
-        options.exp1.sigma = params.double("sigma");
-        options.sim.velocity_scale = params.double("velocity_scale");
-        options.sim.arm = params.string("arm").parse().map_err(anyhow::Error::msg)?;
-        options.exp2.move_while_switching = params.bool("move_while_switching");
-        options.start_step = params.integer("start_step") as u64;
-        let (index, count) = (params.integer("shard_index"), params.integer("shard_count"));
+        let mut options = GenerateOptions::new(experiment, plan, run.seed as u64, out);
+        options.exp1.sigma = run.sigma;
+        options.sim.velocity_scale = run.velocity_scale;
+        options.sim.arm = run.arm.parse().map_err(anyhow::Error::msg)?;
+        options.exp2.move_while_switching = run.move_while_switching;
+        options.start_step = run.start_step as u64;
+        let (index, count) = (run.shard_index, run.shard_count);
         if count > 1 {
             if index >= count {
                 anyhow::bail!("shard_index {index} is not a shard of a set of {count}");
@@ -75,7 +53,7 @@ impl RunParams {
             options.shard = Some(Shard {
                 index: index as u64,
                 count: count as u64,
-                set_seed: params.integer("shard_set_seed") as u64,
+                set_seed: run.shard_set_seed as u64,
             });
         }
         if options.start_step >= options.plan.total_steps() {
@@ -88,29 +66,26 @@ impl RunParams {
         Ok(Self { options })
     }
 
-    /// The run's parameters as `-p name:=value` arguments that make every node run
-    /// `options` (the inverse of [`RunParams::from_params`]).
-    pub fn ros_params(options: &GenerateOptions) -> Vec<String> {
-        vec![
-            format!("experiment:={}", options.experiment),
-            format!("seed:={}", options.seed),
-            format!("sigma:={:?}", options.exp1.sigma),
-            format!("velocity_scale:={:?}", options.sim.velocity_scale),
-            format!("arm:={}", options.sim.arm),
-            format!(
-                "move_while_switching:={}",
-                options.exp2.move_while_switching
-            ),
-            format!("steps:={}", options.plan.steps_per_episode),
-            format!("episodes:={}", options.plan.episodes),
-            format!("start_step:={}", options.start_step),
-            format!("shard_index:={}", options.shard.map_or(0, |s| s.index)),
-            format!("shard_count:={}", options.shard.map_or(1, |s| s.count)),
-            format!(
-                "shard_set_seed:={}",
-                options.shard.map_or(0, |s| s.set_seed)
-            ),
-        ]
+    /// The run parameters that make every node run `options` (the inverse of
+    /// [`RunSetup::from_params`]; the profile is the default, as the steps and episodes
+    /// are given).
+    pub fn run_params(options: &GenerateOptions) -> RunParams {
+        let shard = |f: fn(&Shard) -> u64, none: u64| options.shard.as_ref().map_or(none, f) as i64;
+        RunParams {
+            experiment: options.experiment.to_string(),
+            seed: options.seed as i64,
+            sigma: options.exp1.sigma,
+            velocity_scale: options.sim.velocity_scale,
+            arm: options.sim.arm.to_string(),
+            move_while_switching: options.exp2.move_while_switching,
+            steps: options.plan.steps_per_episode as i64,
+            episodes: options.plan.episodes as i64,
+            start_step: options.start_step as i64,
+            shard_index: shard(|s| s.index, 0),
+            shard_count: shard(|s| s.count, 1),
+            shard_set_seed: shard(|s| s.set_seed, 0),
+            ..RunParams::default()
+        }
     }
 
     /// Sim-time duration of one step, ns (to turn stamps into step counts).

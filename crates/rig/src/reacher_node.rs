@@ -24,13 +24,14 @@ use causal_arm_msgs::srv::{
     GetModelInfo, GetModelInfo_Request, PredictAction, PredictAction_Request,
     PredictAction_Response, PredictNextState, PredictNextState_Request, PredictNextState_Response,
 };
+use causal_arm_node::params::{ReacherParams, RunParams};
 use causal_arm_node::runtime::block_on_timeout;
-use causal_arm_node::{Params, RosArgs, RosNode};
+use causal_arm_node::{RosArgs, RosNode};
 use causal_arm_protocol::Experiment;
 use ros2_client::Client;
 
 use crate::answer::answer_states;
-use crate::{RunParams, node_param_specs, stop_flag};
+use crate::{RunSetup, stop_flag};
 
 /// The trainer's services the IM controller asks.
 pub const PREDICT_ACTION: &str = "/trainer/predict_action";
@@ -43,26 +44,22 @@ pub const PREDICT_NEXT_STATE: &str = "/trainer/predict_next_state";
 
 /// Runs the reacher node until every episode of the run is answered or SIGINT/SIGTERM.
 pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
-    let mut node = RosNode::new(
-        "causal_arm_reacher",
-        &node_param_specs("causal_arm_reacher")?,
-        ros_args,
-    )?;
-    let run = RunParams::from_params(node.params(), "")?;
+    let mut node = RosNode::new(ReacherParams::NODE, &ReacherParams::specs()?, ros_args)?;
+    let run = RunSetup::from_params(&RunParams::from_params(node.params())?, "")?;
+    let own = ReacherParams::from_params(node.params())?;
     if run.options.plan.steps_per_episode < 2 {
         bail!("steps must be at least 2 (the home state and one action per episode)");
     }
     let stop = stop_flag();
-    let task = node.params().string("task").to_owned();
-    let mut json = match task.as_str() {
-        "reach" => reach(&mut node, &run, &stop)?,
-        "place" => place(&mut node, &run, &stop)?,
+    let mut json = match own.task.as_str() {
+        "reach" => reach(&mut node, &run, &own, &stop)?,
+        "place" => place(&mut node, &run, &own, &stop)?,
         other => bail!("task {other:?} is not one of reach, place"),
     };
-    let report = node.params().string("report");
+    let report = &own.report;
     if !report.is_empty() {
         json["max_steps"] = (run.options.plan.steps_per_episode - 1).into();
-        json["seed"] = node.params().integer("target_seed").into();
+        json["seed"] = own.target_seed.into();
         json["over"] = "dds".into();
         std::fs::write(report, serde_json::to_string_pretty(&json)?)
             .with_context(|| format!("writing the report {report}"))?;
@@ -73,36 +70,45 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
 /// Drives the effector to one target per episode; the report's summary and episodes.
 fn reach(
     node: &mut RosNode,
-    run: &RunParams,
+    run: &RunSetup,
+    own: &ReacherParams,
     stop: &AtomicBool,
 ) -> anyhow::Result<serde_json::Value> {
     let plan = run.options.plan;
     let model = ArmModel::embedded();
     let experiment = run.options.experiment;
-    let targets = targets(node.params(), &model, experiment, plan.episodes as usize)?;
+    let targets = targets(own, &model, experiment, plan.episodes as usize)?;
     let layout = StateLayout::of(experiment, &model);
     let sigma = run.options.exp1.sigma;
-    let mut controller = controller(node, &model, layout, sigma, stop)?;
+    let mut controller = controller(node, own, (&model, layout, sigma), stop)?;
     let mut episodes: Vec<Episode> = Vec::with_capacity(targets.len());
-    answer_states("reacher", (node, None), run, 0, stop, |state, place| {
-        let target = &targets[place.episode as usize];
-        if place.in_episode == 0 {
-            episodes.push(Episode::start(target, state));
-        }
-        let episode = episodes
-            .last_mut()
-            .expect("started at step 0 of its episode");
-        if place.in_episode > 0 && !episode.reached() {
-            episode.record(state);
-        }
-        // The last state of an episode gets no command of the controller: its action's
-        // outcome would be the next episode's reset.
-        let last = place.in_episode + 1 == plan.steps_per_episode;
-        Ok(match episode.reached() || last {
-            true => hold(state),
-            false => controller.command(state, target)?,
-        })
-    })?;
+    answer_states(
+        "reacher",
+        (node, None),
+        run,
+        &own.into(),
+        0,
+        stop,
+        |state, place| {
+            let target = &targets[place.episode as usize];
+            if place.in_episode == 0 {
+                episodes.push(Episode::start(target, state));
+            }
+            let episode = episodes
+                .last_mut()
+                .expect("started at step 0 of its episode");
+            if place.in_episode > 0 && !episode.reached() {
+                episode.record(state);
+            }
+            // The last state of an episode gets no command of the controller: its action's
+            // outcome would be the next episode's reset.
+            let last = place.in_episode + 1 == plan.steps_per_episode;
+            Ok(match episode.reached() || last {
+                true => hold(state),
+                false => controller.command(state, target)?,
+            })
+        },
+    )?;
     let summary = summarize(controller.name(), &episodes);
     tracing::info!(
         "{}: {} of {} targets, within 1 cm {:.0} %, within 5 mm {:.0} %",
@@ -113,14 +119,15 @@ fn reach(
         100.0 * summary.success_5mm
     );
     Ok(serde_json::json!({"summary": summary, "episodes": episodes,
-        "step_m": node.params().double("step"), "controller": controller.report()}))
+        "step_m": own.step, "controller": controller.report()}))
 }
 
 /// Moves the cube to one spot on the table per episode by FM-MPC (exp 2); the report's
 /// summary and trials.
 fn place(
     node: &mut RosNode,
-    run: &RunParams,
+    run: &RunSetup,
+    own: &ReacherParams,
     stop: &AtomicBool,
 ) -> anyhow::Result<serde_json::Value> {
     let plan = run.options.plan;
@@ -133,42 +140,48 @@ fn place(
     let model = ArmModel::embedded();
     let scene = run.options.sim.scene();
     let episodes = plan.episodes as usize;
-    let spots = match node.params().string("targets_file") {
-        "" => {
-            let seed = node.params().integer("target_seed") as u64;
-            sample_spots(&scene, run.options.sim.spawn_margin, episodes, seed)
-        }
+    // The declared range keeps the seed non-negative.
+    let seed = own.target_seed as u64;
+    let spots = match own.targets_file.as_str() {
+        "" => sample_spots(&scene, run.options.sim.spawn_margin, episodes, seed),
         file => read_points(Path::new(file))?,
     };
     if spots.len() != episodes {
         bail!("{} spots for a run of {episodes} episodes", spots.len());
     }
-    let settings = cem_settings(node.params())?;
-    let seed = node.params().integer("target_seed") as u64;
-    let fm = ServedFm::connect(node, stop)?;
+    let settings = cem_settings(own)?;
+    let fm = ServedFm::connect(node, own, stop)?;
     let layout = StateLayout::of(Experiment::Exp2, &model);
     let mpc = MpcController::new(model, layout, fm, settings, seed)?;
     let mut controller = PlaceController::new(mpc, scene);
     let mut trials: Vec<PlaceTrial> = Vec::with_capacity(episodes);
     let mut magnet = 0;
-    answer_states("reacher", (node, None), run, 0, stop, |state, place| {
-        let spot = &spots[place.episode as usize];
-        if place.in_episode == 0 {
-            controller.reset();
-            trials.push(PlaceTrial::start(spot, state, &scene));
-        }
-        let trial = trials.last_mut().expect("started at step 0 of its episode");
-        if place.in_episode > 0 && !trial.over() {
-            trial.record(magnet, state, &scene, controller.grasps());
-        }
-        let last = place.in_episode + 1 == plan.steps_per_episode;
-        let command = match trial.over() || last {
-            true => hold(state),
-            false => controller.command(state, spot)?,
-        };
-        magnet = command.magnet;
-        Ok(command)
-    })?;
+    answer_states(
+        "reacher",
+        (node, None),
+        run,
+        &own.into(),
+        0,
+        stop,
+        |state, place| {
+            let spot = &spots[place.episode as usize];
+            if place.in_episode == 0 {
+                controller.reset();
+                trials.push(PlaceTrial::start(spot, state, &scene));
+            }
+            let trial = trials.last_mut().expect("started at step 0 of its episode");
+            if place.in_episode > 0 && !trial.over() {
+                trial.record(magnet, state, &scene, controller.grasps());
+            }
+            let last = place.in_episode + 1 == plan.steps_per_episode;
+            let command = match trial.over() || last {
+                true => hold(state),
+                false => controller.command(state, spot)?,
+            };
+            magnet = command.magnet;
+            Ok(command)
+        },
+    )?;
     let summary = summarize_place(&trials);
     tracing::info!(
         "fm-mpc place: {} trials, within 3 cm {:.0} %",
@@ -180,15 +193,15 @@ fn place(
 
 /// One target per episode: those of `targets_file`, or sampled from `target_seed`.
 fn targets(
-    params: &Params,
+    own: &ReacherParams,
     model: &ArmModel,
     experiment: Experiment,
     episodes: usize,
 ) -> anyhow::Result<Vec<Vector3<f64>>> {
-    let file = params.string("targets_file");
+    let file = own.targets_file.as_str();
     let targets = match file {
         "" => {
-            let seed = params.integer("target_seed") as u64;
+            let seed = own.target_seed as u64;
             experiment_targets(experiment, model, episodes, seed)?
         }
         file => read_targets(Path::new(file), model)?,
@@ -231,23 +244,21 @@ fn read_targets(file: &Path, model: &ArmModel) -> anyhow::Result<Vec<Vector3<f64
 /// The controller the `controller` parameter names.
 fn controller(
     node: &mut RosNode,
-    model: &ArmModel,
-    layout: StateLayout,
-    sigma: f64,
+    own: &ReacherParams,
+    (model, layout, sigma): (&ArmModel, StateLayout, f64),
     stop: &AtomicBool,
 ) -> anyhow::Result<Box<dyn Controller>> {
-    let step = node.params().double("step");
-    let seed = node.params().integer("target_seed") as u64;
-    Ok(match node.params().string("controller") {
+    let (step, seed) = (own.step, own.target_seed as u64);
+    Ok(match own.controller.as_str() {
         "jacobian" => Box::new(JacobianController::new(model.clone(), step)),
         "random" => Box::new(RandomController::new(model, sigma, seed)?),
         "im" => {
-            let im = ServedIm::connect(node, stop)?;
+            let im = ServedIm::connect(node, own, stop)?;
             Box::new(ImController::new(model.clone(), layout, im, step))
         }
         "fm-mpc" => {
-            let settings = cem_settings(node.params())?;
-            let fm = ServedFm::connect(node, stop)?;
+            let settings = cem_settings(own)?;
+            let fm = ServedFm::connect(node, own, stop)?;
             Box::new(MpcController::new(
                 model.clone(),
                 layout,
@@ -261,18 +272,17 @@ fn controller(
 }
 
 /// The cross-entropy method's settings from the node's parameters.
-fn cem_settings(params: &Params) -> anyhow::Result<CemSettings> {
-    let count = |name: &str| -> anyhow::Result<usize> {
-        usize::try_from(params.integer(name))
-            .with_context(|| format!("parameter {name} must not be negative"))
+fn cem_settings(own: &ReacherParams) -> anyhow::Result<CemSettings> {
+    let count = |value: i64, name: &str| -> anyhow::Result<usize> {
+        usize::try_from(value).with_context(|| format!("parameter {name} must not be negative"))
     };
     Ok(CemSettings {
-        horizon: count("horizon")?,
-        samples: count("samples")?,
-        elites: count("elites")?,
-        iterations: count("iterations")?,
-        spread: params.double("spread"),
-        max_delta: params.double("max_delta"),
+        horizon: count(own.horizon, "horizon")?,
+        samples: count(own.samples, "samples")?,
+        elites: count(own.elites, "elites")?,
+        iterations: count(own.iterations, "iterations")?,
+        spread: own.spread,
+        max_delta: own.max_delta,
     })
 }
 
@@ -282,13 +292,12 @@ fn await_trainer<Req, Resp>(
     node: &RosNode,
     client: &Client<Req, Resp>,
     service: &str,
-    stop: &AtomicBool,
+    (timeout, stop): (Duration, &AtomicBool),
 ) -> anyhow::Result<()>
 where
     Req: ros2_client::Message + 'static,
     Resp: ros2_client::Message + 'static,
 {
-    let timeout = Duration::from_secs_f64(node.params().double("timeout"));
     let matched = node.wait_for_service(client, timeout, Duration::from_millis(500));
     if !matched && !stop.load(std::sync::atomic::Ordering::SeqCst) {
         bail!(
@@ -305,10 +314,10 @@ struct ServedFm {
 }
 
 impl ServedFm {
-    fn connect(node: &mut RosNode, stop: &AtomicBool) -> anyhow::Result<Self> {
+    fn connect(node: &mut RosNode, own: &ReacherParams, stop: &AtomicBool) -> anyhow::Result<Self> {
+        let timeout = Duration::from_secs_f64(own.timeout);
         let client = node.client::<PredictNextState>(PREDICT_NEXT_STATE)?;
-        await_trainer(node, &client, PREDICT_NEXT_STATE, stop)?;
-        let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+        await_trainer(node, &client, PREDICT_NEXT_STATE, (timeout, stop))?;
         Ok(Self { client, timeout })
     }
 }
@@ -350,12 +359,12 @@ struct ServedIm {
 
 impl ServedIm {
     /// Finds the trainer's services and asks which next-state features its IM takes.
-    fn connect(node: &mut RosNode, stop: &AtomicBool) -> anyhow::Result<Self> {
-        let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+    fn connect(node: &mut RosNode, own: &ReacherParams, stop: &AtomicBool) -> anyhow::Result<Self> {
+        let timeout = Duration::from_secs_f64(own.timeout);
         let info = node.client::<GetModelInfo>(MODEL_INFO)?;
         let client = node.client::<PredictAction>(PREDICT_ACTION)?;
-        await_trainer(node, &info, MODEL_INFO, stop)?;
-        await_trainer(node, &client, PREDICT_ACTION, stop)?;
+        await_trainer(node, &info, MODEL_INFO, (timeout, stop))?;
+        await_trainer(node, &client, PREDICT_ACTION, (timeout, stop))?;
         let reply = block_on_timeout(
             info.async_call_service(GetModelInfo_Request::default()),
             timeout,

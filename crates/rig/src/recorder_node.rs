@@ -21,7 +21,8 @@ use crate::feed::{drain_or_wait, refusal_summary};
 use crate::intra::{Inlet, IntraPort, Outlet};
 use crate::parts::{FeedSource, RecordParts, record_feeds};
 use crate::screen::Screen;
-use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag};
+use crate::{ACK_TOPIC, RunSetup, stop_flag};
+use causal_arm_node::params::{RecorderParams, RunParams};
 
 /// The run's latched topics: the bag gets them, together, before its first step.
 struct LatchedFeed {
@@ -29,23 +30,33 @@ struct LatchedFeed {
     tf_static: Inlet<TFMessage>,
     got_description: Option<RosString>,
     got_tf_static: Option<TFMessage>,
-    /// Both were handed out by [`LatchedFeed::take`]: nothing is missing any more.
+    /// Both are in the bag (handed out by [`LatchedFeed::take`], or a resumed bag's):
+    /// nothing is missing any more.
     delivered: bool,
 }
 
 impl LatchedFeed {
-    fn new(node: &mut RosNode, port: Option<IntraPort<'_>>) -> anyhow::Result<Self> {
+    /// `in_bag`: the bag already holds them (a resumed run).
+    fn new(node: &mut RosNode, port: Option<IntraPort<'_>>, in_bag: bool) -> anyhow::Result<Self> {
         Ok(Self {
             description: Inlet::open(node, port, topics::ROBOT_DESCRIPTION, qos::latched())?,
             tf_static: Inlet::open(node, port, topics::TF_STATIC, qos::latched())?,
             got_description: None,
             got_tf_static: None,
-            delivered: false,
+            delivered: in_bag,
         })
     }
 
-    /// Both messages once both have arrived (each is taken as it comes).
+    /// Whether the bag holds both.
+    fn delivered(&self) -> bool {
+        self.delivered
+    }
+
+    /// Both messages once both have arrived (each is taken as it comes); `None` after.
     fn take(&mut self) -> Option<LatchedMessages> {
+        if self.delivered {
+            return None;
+        }
         if let Some(d) = self.description.try_take() {
             self.got_description = Some(d);
         }
@@ -83,7 +94,7 @@ impl LatchedFeed {
 
 /// The bag of the run: a new one, or the cut-short one at `output` continued from the
 /// run's start step.
-fn open_sink(output: &Path, overwrite: bool, run: &RunParams) -> anyhow::Result<BagSink> {
+fn open_sink(output: &Path, overwrite: bool, run: &RunSetup) -> anyhow::Result<BagSink> {
     Ok(match run.options.start_step {
         0 => BagSink::create(output, overwrite, &run.options)?,
         start => BagSink::resume(output, &run.options, Some(start))?.0,
@@ -185,18 +196,19 @@ fn warn_of_unwritten_steps(joiner: &StepJoiner<RecordParts>, latched: Vec<&'stat
 
 /// The bag directory and the run to record in it, from the recorder's parameters, checked
 /// before anything is opened.
-fn recording_of(params: &Params) -> anyhow::Result<(String, RunParams)> {
-    let output = params.string("output").to_owned();
-    if output.is_empty() {
+fn recording_of(params: &Params) -> anyhow::Result<(RecorderParams, RunSetup)> {
+    let own = RecorderParams::from_params(params)?;
+    if own.output.is_empty() {
         bail!("parameter \"output\" is required: --ros-args -p output:=bags/NAME");
     }
-    let mut run = RunParams::from_params(params, &output)?;
+    let mut run = RunSetup::from_params(&RunParams::from_params(params)?, &own.output)?;
+    // Declared ranges keep both non-negative.
     run.options.split = causal_arm_datagen::SplitLimits::from_ros2_units(
-        params.integer("max_bag_size") as u64,
-        params.integer("max_bag_duration") as u64,
+        own.max_bag_size as u64,
+        own.max_bag_duration as u64,
     );
     validate(&run.options)?;
-    Ok((output, run))
+    Ok((own, run))
 }
 
 /// Runs the recorder node until every step is written or SIGINT/SIGTERM.
@@ -206,19 +218,19 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
 
 /// As [`run`], composed with other nodes of the graph in this process (`port`).
 pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::Result<()> {
-    let specs = node_param_specs("causal_arm_recorder")?;
-    let mut node = RosNode::new("causal_arm_recorder", &specs, ros_args)?;
-    let (output, run) = recording_of(node.params())?;
-    let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+    let mut node = RosNode::new(RecorderParams::NODE, &RecorderParams::specs()?, ros_args)?;
+    let (own, run) = recording_of(node.params())?;
+    let timeout = Duration::from_secs_f64(own.timeout);
     let stop = stop_flag();
-    let screen = Rc::new(Screen::new(&mut node)?);
+    let screen = Rc::new(Screen::new(&mut node, &own.trusted_publishers)?);
     let mut source = FeedSource {
         node: &mut node,
         screen: &screen,
         port,
     };
     let feeds = record_feeds(&mut source, &qos::recorded())?;
-    let mut latched = LatchedFeed::new(&mut node, port)?;
+    // A resumed bag already holds the latched messages.
+    let mut latched = LatchedFeed::new(&mut node, port, run.options.start_step > 0)?;
     let mut ack = Acknowledger::new(Outlet::<Clock>::open(
         &mut node,
         port,
@@ -229,28 +241,24 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
     node.wait_for_discovery_settled(crate::SETTLE);
 
     let start = run.options.start_step;
-    let mut sink = open_sink(
-        &PathBuf::from(&output),
-        node.params().bool("overwrite"),
-        &run,
-    )?;
+    let mut sink = open_sink(&PathBuf::from(&own.output), own.overwrite, &run)?;
     let total = run.options.plan.total_steps();
     let mut joiner = StepJoiner::<RecordParts>::new();
-    // A resumed bag already holds the latched messages.
-    let mut have_latched = start > 0;
     let mut written = start;
     let mut last_activity = Instant::now();
-    let land_every = node.params().integer("land_every") as usize;
+    // The declared range keeps it positive.
+    let land_every = own.land_every as usize;
     let mut result = Ok(());
     while written < total && !stop.load(Ordering::SeqCst) {
         let mut arrived = drain_or_wait(&feeds, &mut joiner, Duration::from_millis(100));
-        if !have_latched && let Some(messages) = latched.take() {
+        if let Some(messages) = latched.take() {
             sink.latched(&messages)?;
-            have_latched = true;
             arrived = true;
         }
         // Older parts may still be in flight on another topic: write strictly in order.
-        while have_latched && let Some((stamp, parts)) = joiner.pop_complete(true) {
+        while latched.delivered()
+            && let Some((stamp, parts)) = joiner.pop_complete(true)
+        {
             let (messages, action) = parts.into_step().expect("complete");
             sink.state(stamp, messages)?;
             sink.action(stamp, &action)?;
@@ -272,7 +280,7 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
             // one wake-up takes several steps instead of every sample waking this thread.
             std::thread::sleep(GATHER);
         } else if last_activity.elapsed() > timeout {
-            let waiting = (!have_latched).then(|| (latched.missing(), joiner.pending()));
+            let waiting = (!latched.delivered()).then(|| (latched.missing(), joiner.pending()));
             result = Err(stall_error(timeout, (written, total), waiting));
             break;
         } else {
@@ -280,13 +288,7 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
         }
     }
     tracing::info!("recorder {}", refusal_summary(&feeds, &joiner));
-    // A resumed bag holds the latched messages already: none is missing.
-    let latched_missing = if have_latched {
-        Vec::new()
-    } else {
-        latched.missing()
-    };
-    warn_of_unwritten_steps(&joiner, latched_missing);
+    warn_of_unwritten_steps(&joiner, latched.missing());
     let last_written = sink.last_step_stamp();
     let summary = sink.finish()?;
     // Every step has landed now: acknowledge the last one, and let reliable delivery reach

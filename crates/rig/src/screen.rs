@@ -28,10 +28,10 @@ pub struct Screen {
 }
 
 impl Screen {
-    /// Subscribes `node` to `ros_discovery_info`; reads its `trusted_publishers` parameter.
-    pub fn new(node: &mut RosNode) -> anyhow::Result<Self> {
-        let setting = node.params().string("trusted_publishers").to_owned();
-        Self::with_setting(node, setting)
+    /// Subscribes `node` to `ros_discovery_info`, trusting as its `trusted_publishers`
+    /// parameter says.
+    pub fn new(node: &mut RosNode, trusted_publishers: &str) -> anyhow::Result<Self> {
+        Self::with_setting(node, trusted_publishers.to_owned())
     }
 
     /// For a node outside the graph file (the launcher following the run): trusts each

@@ -31,7 +31,8 @@ use crate::feed::LOGGED;
 use crate::flow::AckWindow;
 use crate::intra::{IntraPort, Outlet, local_receiver};
 use crate::screen::{Screen, Screened};
-use crate::{ACK_TOPIC, RunParams, node_param_specs, stop_flag};
+use crate::{ACK_TOPIC, RunSetup, stop_flag};
+use causal_arm_node::params::{RunParams, SimParams};
 
 fn publish<M: causal_arm_msgs::RosMessage + Clone>(
     p: &Outlet<M>,
@@ -431,13 +432,14 @@ pub fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
 
 /// As [`run`], composed with other nodes of the graph in this process (`port`).
 pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::Result<()> {
-    let specs = node_param_specs("causal_arm_sim")?;
-    let mut node = RosNode::new("causal_arm_sim", &specs, ros_args)?;
-    let run = RunParams::from_params(node.params(), "")?;
+    let mut node = RosNode::new(SimParams::NODE, &SimParams::specs()?, ros_args)?;
+    let run = RunSetup::from_params(&RunParams::from_params(node.params())?, "")?;
+    let own = SimParams::from_params(node.params())?;
     validate(&run.options)?;
-    let window = node.params().integer("ack_window") as u64;
-    let wait_for_recorder = node.params().bool("wait_for_recorder");
-    let timeout = Duration::from_secs_f64(node.params().double("timeout"));
+    // The declared range keeps the window positive.
+    let window = own.ack_window as u64;
+    let wait_for_recorder = own.wait_for_recorder;
+    let timeout = Duration::from_secs_f64(own.timeout);
     let stop = stop_flag();
 
     let start = run.options.start_step;
@@ -449,7 +451,7 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
         }
         window
     });
-    let screen = Rc::new(Screen::new(&mut node)?);
+    let screen = Rc::new(Screen::new(&mut node, &own.trusted_publishers)?);
     let scene = run.options.sim.scene();
     let mut states = DdsStatePublisher::new(&mut node, pacing, (&screen, port), scene)?;
     let mut commands =

@@ -19,7 +19,7 @@ use causal_arm_protocol::ns_from_time;
 
 use crate::compose::ComposedNode;
 use crate::screen::{Screen, Screened};
-use crate::{ACK_TOPIC, RunParams};
+use crate::{ACK_TOPIC, RunSetup};
 pub use supervise::{Process, STOP_TIMEOUT, Started, follow, stop_all, wait_all, wait_for_exit};
 
 /// One node to start: its graph-file name (also its binary's) and its arguments.
@@ -43,13 +43,14 @@ impl LaunchPlan {
     /// Every node of `graph`, each given the run's parameters of `options` and its own
     /// (the recorder its output), joining with `enclave` if the launcher has one.
     pub fn from_graph(graph: &GraphSpec, options: &GenerateOptions, enclave: Option<&str>) -> Self {
-        let run = RunParams::ros_params(options);
+        let run = RunSetup::run_params(options).to_ros_args();
         let (size, duration) = options.split.to_ros2_units();
+        use causal_arm_node::params::recorder;
         let node_values = [
-            ("output", options.out.display().to_string()),
-            ("overwrite", options.overwrite.to_string()),
-            ("max_bag_size", size.to_string()),
-            ("max_bag_duration", duration.to_string()),
+            (recorder::output::NAME, options.out.display().to_string()),
+            (recorder::overwrite::NAME, options.overwrite.to_string()),
+            (recorder::max_bag_size::NAME, size.to_string()),
+            (recorder::max_bag_duration::NAME, duration.to_string()),
         ];
         let nodes = (graph.nodes.iter())
             .map(|node| {

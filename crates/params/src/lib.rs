@@ -1,9 +1,20 @@
-//! Node parameters from the command line, ROS 2 style (`--ros-args -p name:=value`).
+//! Node parameters, declared once and checked once.
 //!
-//! Each node declares its parameters up front ([`ParamSpec`]); values given on the
-//! command line are parsed as YAML-like scalars and checked against the declared type
-//! and range, so `-p steps:=ten` or a misspelt name stops the node with a message that
-//! names the parameter instead of running with a default the user did not want.
+//! `launch_scripts/graph.toml` declares every parameter; the build makes one typed struct
+//! per owner from it ([`RunParams`], [`TrainerParams`], …: [`declared`]), so a node, the
+//! CLI and a library read the same fields, and a parameter added to the file is a field
+//! everywhere. Values given on the command line (`--ros-args -p name:=value`) are parsed
+//! as YAML-like scalars and checked against the declared type and range by
+//! [`ParamSpec::parse`], the one verdict on a value: `-p steps:=ten` or a misspelt name
+//! stops the node with a message naming the parameter, and a command-line option of the
+//! same setting gets the same words. No DDS here: the node plumbing announces these
+//! declarations over ROS 2 (`causal_arm_node::params`).
+
+#[cfg(test)]
+mod codegen;
+pub mod declared;
+
+pub use declared::*;
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -69,20 +80,6 @@ impl ParamValue {
             ParamValue::String(_) => ParamKind::String,
             ParamValue::DoubleArray(_) => ParamKind::DoubleArray,
             ParamValue::StringArray(_) => ParamKind::StringArray,
-        }
-    }
-
-    /// Converts into ros2-client's value so the node's parameter services
-    /// (`ros2 param get/list`) report what we run with.
-    pub fn to_ros(&self) -> ros2_client::ParameterValue {
-        use ros2_client::ParameterValue as P;
-        match self {
-            ParamValue::Bool(v) => P::Boolean(*v),
-            ParamValue::Integer(v) => P::Integer(*v),
-            ParamValue::Double(v) => P::Double(*v),
-            ParamValue::String(v) => P::String(v.clone()),
-            ParamValue::DoubleArray(v) => P::DoubleArray(v.clone()),
-            ParamValue::StringArray(v) => P::StringArray(v.clone()),
         }
     }
 }
@@ -164,42 +161,6 @@ impl ParamSpec {
         self.choices = choices.into_iter().map(Into::into).collect();
         self
     }
-
-    /// What `ros2 param describe` shows and the parameter services enforce: the
-    /// description, the range as rcl_interfaces' integer or floating-point range (bounds
-    /// inclusive, any step), the choices as the additional constraints, as an rclcpp node
-    /// declaring them would; and read-only, because our nodes read their parameters once at
-    /// start (a set that changed nothing would be a lie), all but `use_sim_time`, which
-    /// the node follows.
-    pub fn descriptor(&self) -> ros2_client::parameters::ParameterDescriptor {
-        use ros2_client::parameters::{NumericRange, ParameterDescriptor};
-        let range = match (self.range, &self.default) {
-            (Some((lo, hi)), ParamValue::Integer(_)) => NumericRange::IntegerRange {
-                from_value: lo.ceil() as i64,
-                to_value: hi.floor().min(i64::MAX as f64) as i64,
-                step: 0,
-            },
-            (Some((lo, hi)), ParamValue::Double(_) | ParamValue::DoubleArray(_)) => {
-                NumericRange::FloatingPointRange {
-                    from_value: lo,
-                    to_value: hi,
-                    step: 0.0,
-                }
-            }
-            _ => NumericRange::NotSpecified,
-        };
-        let additional_constraints = match self.choices.is_empty() {
-            true => String::new(),
-            false => format!("one of: {}", self.choices.join(", ")),
-        };
-        ParameterDescriptor {
-            description: self.description.to_owned(),
-            additional_constraints,
-            range,
-            read_only: self.name != use_sim_time_spec().name,
-            ..ParameterDescriptor::from_value(self.name, &self.default.to_ros())
-        }
-    }
 }
 
 impl From<&'static ParamDecl> for ParamSpec {
@@ -218,28 +179,6 @@ impl From<&'static ParamDecl> for ParamSpec {
             None => spec,
         }
     }
-}
-
-/// The parameters of serving node `server` (trainer, explainer), as the graph file
-/// declares them.
-pub fn server_param_specs(server: &str) -> Result<Vec<ParamSpec>, GraphError> {
-    let graph = causal_arm_protocol::graph::graph()?;
-    let decl = graph.server(server).ok_or_else(|| GraphError {
-        source_name: "the graph file".into(),
-        problem: format!("it declares no server {server}"),
-    })?;
-    Ok(decl.params.iter().map(ParamSpec::from).collect())
-}
-
-/// Run parameter `name` (launch_scripts/graph.toml `[[run_params]]`), as every node of the
-/// graph declares it.
-pub fn run_param_spec(name: &str) -> Result<ParamSpec, GraphError> {
-    let graph = causal_arm_protocol::graph::graph()?;
-    let decl = graph.run_param(name).ok_or_else(|| GraphError {
-        source_name: "the graph file".into(),
-        problem: format!("it declares no run parameter {name}"),
-    })?;
-    Ok(ParamSpec::from(decl))
 }
 
 /// Every node has `use_sim_time`, as in ROS 2.
@@ -285,6 +224,19 @@ pub enum ParamError {
         min: String,
         /// Upper bound.
         max: String,
+    },
+    /// The graph file in use cannot be read, or declares what this program was not
+    /// built with.
+    #[error(transparent)]
+    Graph(#[from] GraphError),
+    /// A parameter read under another type or name than declared (a programming error
+    /// or a graph file given at run time).
+    #[error("parameter {name:?} {problem}")]
+    Declared {
+        /// Parameter name.
+        name: String,
+        /// What is wrong.
+        problem: String,
     },
     /// A `--ros-args` item is malformed or not supported.
     #[error("invalid --ros-args: {0}")]
@@ -405,6 +357,11 @@ impl Params {
     /// All values, by name.
     pub fn iter(&self) -> impl Iterator<Item = (&'static str, &ParamValue)> {
         self.values.iter().map(|(k, v)| (*k, v))
+    }
+
+    /// The value of `name`, if declared.
+    pub fn value(&self, name: &str) -> Option<&ParamValue> {
+        self.values.get(name)
     }
 
     fn get(&self, name: &str) -> &ParamValue {

@@ -3,8 +3,10 @@
 The graph (nodes in start order, their parameters with defaults, which node ends the run)
 is read from launch_scripts/graph.toml, the file `causal-arm launch`, `causal-arm
 generate` and the nodes read too; CAUSAL_ARM_GRAPH=FILE replaces it for all of them.
-Every run parameter of the file is a launch argument with the file's default, plus `out`
-and `overwrite` for the recorder.
+Every run parameter of the file is a launch argument with the file's default; so is every
+node's own parameter, named after its node (`recorder_chunk_compression:=lz4`,
+`sim_ack_window:=64`), but for the recorder's `out` and `overwrite`. A parameter added to
+the file is thus a launch argument without an edit here.
 
 The node binaries are looked up on PATH or in CAUSAL_ARM_BIN_DIR (default:
 <repo>/target/release).
@@ -36,11 +38,20 @@ def ros_text(value) -> str:
     return str(value)
 
 
+def own_arguments(node: dict) -> list:
+    """(launch argument, parameter, default text) of a node's own parameters."""
+    named = dict((param, arg) for arg, param in NODE_ARGUMENTS.get(node["name"], []))
+    short = node["name"].removeprefix("causal_arm_")
+    return [(named.get(p["name"], f"{short}_{p['name']}"), p["name"], ros_text(p["default"]))
+            for p in node.get("params", [])]
+
+
 def launch_arguments(spec: dict, default_out: str) -> dict:
     """Launch argument name -> default text."""
     args = {p["name"]: ros_text(p["default"]) for p in spec["run_params"]}
+    for node in spec["nodes"]:
+        args.update({arg: default for arg, _, default in own_arguments(node)})
     args["out"] = default_out
-    args["overwrite"] = "false"
     return args
 
 
@@ -53,9 +64,7 @@ def node_commands(experiment: str, values: dict, spec: dict = None) -> list:
     for node in spec["nodes"]:
         items = [["experiment:=", experiment]]
         items += [[name, ":=", values[name]] for name in run]
-        own = {p["name"] for p in node.get("params", [])}
-        items += [[param, ":=", values[arg]] for arg, param in NODE_ARGUMENTS.get(node["name"], [])
-                  if param in own]
+        items += [[param, ":=", values[arg]] for arg, param, _ in own_arguments(node)]
         args = ["--ros-args"]
         for item in items:
             args += ["-p", item]

@@ -97,6 +97,64 @@ def test_a_seed_beyond_int64_gets_one_verdict_from_the_cli_and_every_node(run_cl
     assert r.returncode == 0, r.stderr
 
 
+def chunk_compressions(bag: pathlib.Path) -> set:
+    """The compression of every chunk of a bag's files, read by the `mcap` package."""
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+
+    found = set()
+    for path in sorted(bag.glob("*.mcap")):
+        with open(path, "rb") as f:
+            found |= {r.compression for r in StreamReader(f, emit_chunks=True).records
+                      if isinstance(r, Chunk)}
+    return found
+
+
+def test_a_parameter_added_to_the_graph_file_reaches_the_cli_and_the_launch_files(run_cli, tmp_path):
+    """The recorder's chunk_compression was added as one entry in graph.toml plus its use
+    (the recorder hands it to the bag writer): `generate` and `launch` take its default and
+    its one check from the file, `launch` passes it to the recorder, and the ros2 launch
+    files declare it as an argument and pass it on. (The node's side, `ros2 param
+    describe`, is in test_rclpy.py.)"""
+    (decl,) = [p for n in tomllib.loads(GRAPH.read_text())["nodes"] if n["name"] == "causal_arm_recorder"
+               for p in n["params"] if p["name"] == "chunk_compression"]
+    assert decl["default"] == "zstd" and decl["choices"] == ["zstd", "lz4", "none"]
+    help_text = run_cli("generate", "--help").stdout
+    assert re.search(r"--chunk-compression <CHUNK_COMPRESSION>[^\[]*\[default: zstd\]", help_text), help_text
+    sizes = {}
+    for choice, written in (("zstd", {"zstd"}), ("lz4", {"lz4"}), ("none", {""})):
+        bag = tmp_path / choice
+        r = run_cli("generate", "exp1", "--steps", "300", "--chunk-compression", choice, "--out", bag)
+        assert r.returncode == 0, r.stderr
+        assert chunk_compressions(bag) == written
+        sizes[choice] = sum(f.stat().st_size for f in bag.glob("*.mcap"))
+    assert sizes["zstd"] < sizes["none"] and sizes["lz4"] < sizes["none"], sizes
+    r = run_cli("generate", "exp1", "--steps", "10", "--chunk-compression", "brotli", "--out", tmp_path / "x")
+    assert r.returncode != 0 and 'unknown chunk compression "brotli": expected zstd, lz4 or none' in r.stderr
+    # causal-arm launch: the recorder, and only it, is given the setting.
+    out = run_cli("launch", "exp1", "--out", tmp_path / "bag", "--chunk-compression", "lz4", "--print-commands")
+    assert out.returncode == 0, out.stderr
+    given = {line.split()[0]: "chunk_compression:=lz4" in line.split() for line in out.stdout.strip().splitlines()}
+    assert given == {"causal_arm_recorder": True, "causal_arm_babbler": False, "causal_arm_sim": False}
+    # ros2 launch files: an argument with the file's default, passed to the recorder.
+    launch = load_launch_module()
+    spec = launch.load_graph()
+    args = launch.launch_arguments(spec, "bags/x")
+    assert args["recorder_chunk_compression"] == "zstd"
+    commands = dict(launch.node_commands("exp1", {**args, "recorder_chunk_compression": "none"}, spec))
+    assert ["chunk_compression", ":=", "none"] in commands["causal_arm_recorder"]
+    assert not any(item[0] == "chunk_compression" for item in commands["causal_arm_sim"] if isinstance(item, list))
+
+
+def test_the_recorder_refuses_an_unknown_compression_before_any_work(causal_arm_bin, tmp_path, private_netns):
+    import subprocess
+    r = subprocess.run([str(causal_arm_bin.parent / "causal_arm_recorder"), "--ros-args",
+                        "-p", f"output:={tmp_path / 'bag'}", "-p", "chunk_compression:=brotli"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and 'unknown chunk compression "brotli": expected zstd, lz4 or none' in r.stderr, r.stderr
+    assert not (tmp_path / "bag").exists()
+
+
 def test_kappa_0_gets_one_verdict_from_the_cli_and_the_node(run_cli, causal_arm_bin, private_netns):
     """`--kappa 0` and `-p kappa:=0` are checked by the one check of the explainer's kappa,
     before anything is read: no model or bag exists here."""

@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import time
+from pathlib import Path
 
 import pytest
 
@@ -269,6 +270,33 @@ def test_rclpy_parameters_are_listed_described_and_refused_as_rclcpp_does(traine
                         requests=[{"parameters": [{"name": "folds", "value": {"type": 2, "integer_value": -5}}]}])
     assert [(r["successful"], r["reason"]) for r in set_["results"]] == [
         (False, "parameter 'folds' cannot be set because it is read-only")]
+
+
+def test_a_parameter_added_to_the_graph_file_is_declared_and_described_by_the_node(distro, causal_arm_bin, tmp_path):
+    """`ros2 param describe /causal_arm_recorder chunk_compression`, from rclpy: the one entry
+    added to launch_scripts/graph.toml is declared by the node with the file's description
+    and choices, and holds the value it was given (the CLI's and the launch files' side is
+    in test_graph_file.py)."""
+    import tomllib
+
+    from conftest import node_process
+    graph = tomllib.loads((Path(__file__).resolve().parents[2] / "launch_scripts" / "graph.toml").read_text())
+    (decl,) = [p for n in graph["nodes"] if n["name"] == "causal_arm_recorder"
+               for p in n["params"] if p["name"] == "chunk_compression"]
+    node = "/causal_arm_recorder"
+    with node_process(causal_arm_bin.parent / "causal_arm_recorder",
+                      ["-p", f"output:={tmp_path / 'bag'}", "-p", "chunk_compression:=lz4"], ros_env()):
+        with RclpyPeer(distro, "rclpy_param_client", ros_env()) as peer:
+            (described,) = peer.call(service=f"{node}/describe_parameters",
+                                     type="rcl_interfaces/srv/DescribeParameters",
+                                     requests=[{"names": ["chunk_compression"]}])
+            (descriptor,) = described["descriptors"]
+            assert descriptor["description"] == decl["description"]
+            assert descriptor["additional_constraints"] == "one of: zstd, lz4, none"
+            assert descriptor["type"] == 4 and descriptor["read_only"]
+            (got,) = peer.call(service=f"{node}/get_parameters", type="rcl_interfaces/srv/GetParameters",
+                               requests=[{"names": ["chunk_compression"]}])
+            assert [(v["type"], v["string_value"]) for v in got["values"]] == [(4, "lz4")]
 
 
 def set_trainer_use_sim_time(peer, value):

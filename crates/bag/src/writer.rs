@@ -26,6 +26,8 @@ pub enum Compression {
     None,
 }
 
+causal_arm_protocol::choice!(Compression, "chunk compression", [Compression::Zstd => "zstd", Compression::Lz4 => "lz4", Compression::None => "none"]);
+
 /// Writer settings.
 #[derive(Debug, Clone)]
 pub struct BagOptions {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context as _;
-use causal_arm_datagen::{GenerateOptions, generate, generate_shards, shard_options};
+use causal_arm_datagen::{Compression, GenerateOptions, generate, generate_shards, shard_options};
 use causal_arm_params::{recorder, run};
 use causal_arm_protocol::{Experiment, Profile, RunPlan};
 use causal_arm_sim::ArmMode;
@@ -69,6 +69,11 @@ pub struct GenerateArgs {
     #[arg(long, value_name = "SECONDS",
           default_value = recorder::max_bag_duration::default_text())]
     max_bag_duration: u64,
+    /// How the bag's chunks are compressed: zstd (rosbag2's MCAP default), lz4 (faster)
+    /// or none (fastest to write, largest).
+    #[arg(long, default_value = recorder::chunk_compression::default_text(),
+          value_parser = choice::<Compression>())]
+    chunk_compression: Compression,
     /// Standard deviation of the exp1 joint targets, rad.
     #[arg(allow_negative_numbers = true, long, default_value = run::sigma::default_text())]
     sigma: f64,
@@ -128,6 +133,7 @@ impl GenerateArgs {
         options.exp2.move_while_switching = self.move_while_switching;
         options.split =
             causal_arm_bag::SplitLimits::from_ros2_units(self.max_bag_size, self.max_bag_duration);
+        options.compression = self.chunk_compression;
         Ok(options)
     }
 }

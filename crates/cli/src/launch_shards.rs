@@ -92,6 +92,7 @@ fn shard_args(shard: &GenerateOptions, composed: bool, ros_args: &RosArgs) -> Ve
                 "--max-bag-duration",
                 shard.split.to_ros2_units().1.to_string(),
             ),
+            ("--chunk-compression", shard.compression.to_string()),
         ]
         .into_iter()
         .flat_map(|(flag, value)| [flag.to_owned(), value]),

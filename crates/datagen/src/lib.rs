@@ -10,9 +10,9 @@
 use std::path::{Path, PathBuf};
 
 use causal_arm_babbler::{Exp1Babbler, Exp1Config, Exp2Babbler, Exp2Config};
-/// Where a run's bag starts its next file ([`GenerateOptions::split`]).
-pub use causal_arm_bag::SplitLimits;
 use causal_arm_bag::{BagError, BagOptions, BagWriter, offered_qos_yaml};
+/// Where a run's bag starts its next file ([`GenerateOptions::split`]).
+pub use causal_arm_bag::{Compression, SplitLimits};
 use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::msg::Action;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
@@ -54,6 +54,9 @@ pub struct GenerateOptions {
     /// When the bag starts its next file (`--max-bag-size`, `--max-bag-duration`); the
     /// bag's content is the same however it is split.
     pub split: SplitLimits,
+    /// How the bag's chunks are compressed (the recorder's `chunk_compression`); the
+    /// messages are the same either way.
+    pub compression: Compression,
 }
 
 impl GenerateOptions {
@@ -111,6 +114,7 @@ impl GenerateOptions {
             exp2: Exp2Config::default(),
             shard: None,
             split: SplitLimits::default(),
+            compression: Compression::default(),
         }
     }
 }
@@ -380,6 +384,7 @@ impl BagSink {
                 overwrite,
                 custom_data: options.bag_custom_data(),
                 split: options.split,
+                compression: options.compression,
                 ..BagOptions::default()
             },
         )?;

@@ -207,6 +207,7 @@ fn recording_of(params: &Params) -> anyhow::Result<(RecorderParams, RunSetup)> {
         own.max_bag_size as u64,
         own.max_bag_duration as u64,
     );
+    run.options.compression = own.chunk_compression.parse().map_err(anyhow::Error::msg)?;
     validate(&run.options)?;
     Ok((own, run))
 }

@@ -51,6 +51,10 @@ impl LaunchPlan {
             (recorder::overwrite::NAME, options.overwrite.to_string()),
             (recorder::max_bag_size::NAME, size.to_string()),
             (recorder::max_bag_duration::NAME, duration.to_string()),
+            (
+                recorder::chunk_compression::NAME,
+                options.compression.to_string(),
+            ),
         ];
         let nodes = (graph.nodes.iter())
             .map(|node| {

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use causal_arm_datagen::{Compression, GenerateOptions, generate, generate_shards, shard_options};
 use causal_arm_params::{recorder, run};
-use causal_arm_protocol::{Experiment, Profile, RunPlan};
+use causal_arm_protocol::{Experiment, Profile};
 use causal_arm_sim::ArmMode;
 use clap::Args;
 
@@ -98,29 +98,26 @@ pub struct GenerateArgs {
 impl GenerateArgs {
     /// Validated options.
     pub fn options(&self) -> anyhow::Result<GenerateOptions> {
-        let (experiment, profile) = (self.experiment, self.profile);
-        let mut plan = RunPlan::for_profile(experiment, profile);
-        let positive = |v: i64, flag: &str| -> anyhow::Result<u64> {
+        let experiment = self.experiment;
+        let positive = |v: i64, flag: &str| -> anyhow::Result<i64> {
             if v <= 0 {
                 anyhow::bail!("{flag} must be a positive number, got {v}");
             }
-            Ok(v as u64)
+            Ok(v)
         };
-        match (experiment, self.steps, self.episodes) {
+        // The run's parameters as the nodes take them (0 steps or episodes: the profile's).
+        let (steps, episodes) = match (experiment, self.steps, self.episodes) {
             (_, Some(_), Some(_)) => anyhow::bail!("give --steps or --episodes, not both"),
-            (Experiment::Exp1, Some(s), None) => plan.steps_per_episode = positive(s, "--steps")?,
-            (Experiment::Exp2, None, Some(e)) => plan.episodes = positive(e, "--episodes")?,
+            (Experiment::Exp1, Some(s), None) => (positive(s, "--steps")?, 0),
+            (Experiment::Exp2, None, Some(e)) => (0, positive(e, "--episodes")?),
             (Experiment::Exp1, None, Some(_)) => {
                 anyhow::bail!("exp1 runs one episode; use --steps")
             }
             (Experiment::Exp2, Some(_), None) => {
                 anyhow::bail!("exp2 episodes have 500 steps; use --episodes")
             }
-            _ => {}
-        }
-        let mut options = GenerateOptions::new(experiment, plan, self.seed, &self.out);
-        options.overwrite = self.overwrite;
-        options.exp1.sigma = self.sigma;
+            _ => (0, 0),
+        };
         if !(self.velocity_scale.is_finite() && self.velocity_scale > 0.0) {
             anyhow::bail!(
                 "--velocity-scale must be a positive number, got {}",
@@ -128,9 +125,21 @@ impl GenerateArgs {
             );
         }
         within_graph_range(run::velocity_scale::NAME, self.velocity_scale)?;
-        options.sim.velocity_scale = self.velocity_scale;
-        options.sim.arm = self.arm;
-        options.exp2.move_while_switching = self.move_while_switching;
+        let run = causal_arm_params::RunParams {
+            experiment: experiment.to_string(),
+            profile: self.profile.to_string(),
+            steps,
+            episodes,
+            // `seed_value` keeps it within int64.
+            seed: self.seed as i64,
+            sigma: self.sigma,
+            velocity_scale: self.velocity_scale,
+            arm: self.arm.to_string(),
+            move_while_switching: self.move_while_switching,
+            ..Default::default()
+        };
+        let mut options = GenerateOptions::from_run_params(&run, &self.out)?;
+        options.overwrite = self.overwrite;
         options.split =
             causal_arm_bag::SplitLimits::from_ros2_units(self.max_bag_size, self.max_bag_duration);
         options.compression = self.chunk_compression;

@@ -24,6 +24,7 @@ use causal_arm_sim::{SimConfig, SimError, Simulator};
 use thiserror::Error;
 
 mod resume;
+mod run_params;
 mod shards;
 pub use resume::{interrupted_dir, resume_point};
 pub use shards::{Shard, generate_shards, shard_options, shard_set_manifest};

@@ -30,12 +30,13 @@ fn run(ros_args: &RosArgs) -> anyhow::Result<()> {
     let mut node = RosNode::new(TrainerParams::NODE, &TrainerParams::specs()?, ros_args)?;
     let job = TrainerJob::from_params(&TrainerParams::from_params(node.params())?, stop.clone())?;
     if !job.bags.is_empty() {
-        match job.train(&mut |line| tracing::info!("{line}")) {
-            Err(e) if stop.load(Ordering::SeqCst) => {
+        // The files and figures written are logged as they come.
+        if let Err(e) = job.train(&mut |line| tracing::info!("{line}")) {
+            if stop.load(Ordering::SeqCst) {
                 tracing::info!("stopping: {e}");
                 return Ok(());
             }
-            result => drop(result?),
+            return Err(e);
         }
     }
     let models = job.load()?;

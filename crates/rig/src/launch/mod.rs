@@ -17,9 +17,9 @@ use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::graph::GraphSpec;
 use causal_arm_protocol::ns_from_time;
 
+use crate::ACK_TOPIC;
 use crate::compose::ComposedNode;
 use crate::screen::{Screen, Screened};
-use crate::{ACK_TOPIC, RunSetup};
 pub use supervise::{Process, STOP_TIMEOUT, Started, follow, stop_all, wait_all, wait_for_exit};
 
 /// One node to start: its graph-file name (also its binary's) and its arguments.
@@ -43,7 +43,7 @@ impl LaunchPlan {
     /// Every node of `graph`, each given the run's parameters of `options` and its own
     /// (the recorder its output), joining with `enclave` if the launcher has one.
     pub fn from_graph(graph: &GraphSpec, options: &GenerateOptions, enclave: Option<&str>) -> Self {
-        let run = RunSetup::run_params(options).to_ros_args();
+        let run = options.run_params().to_ros_args();
         let (size, duration) = options.split.to_ros2_units();
         use causal_arm_node::params::recorder;
         let node_values = [

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use causal_arm_datagen::{Compression, GenerateOptions, generate, generate_shards, shard_options};
-use causal_arm_params::{recorder, run};
+use causal_arm_params::{ParamSpec, recorder, run};
 use causal_arm_protocol::{Experiment, Profile};
 use causal_arm_sim::ArmMode;
 use clap::Args;
@@ -124,7 +124,7 @@ impl GenerateArgs {
                 self.velocity_scale
             );
         }
-        within_graph_range(run::velocity_scale::NAME, self.velocity_scale)?;
+        within_graph_range(run::velocity_scale::spec()?, self.velocity_scale)?;
         let run = causal_arm_params::RunParams {
             experiment: experiment.to_string(),
             profile: self.profile.to_string(),
@@ -155,19 +155,15 @@ fn seed_value(raw: &str) -> Result<u64, String> {
     u64::try_from(seed).map_err(|e| e.to_string())
 }
 
-/// Refuses `value` outside the range launch_scripts/graph.toml declares for run parameter
-/// `name`, as the nodes do for the same parameter.
-fn within_graph_range(name: &str, value: f64) -> anyhow::Result<()> {
-    let spec = causal_arm_params::RunParams::specs()?
-        .into_iter()
-        .find(|s| s.name == name)
-        .ok_or_else(|| anyhow::anyhow!("the graph file declares no run parameter {name}"))?;
+/// Refuses `value` outside the range launch_scripts/graph.toml declares for `spec`'s
+/// run parameter, as the nodes do for the same parameter.
+fn within_graph_range(spec: ParamSpec, value: f64) -> anyhow::Result<()> {
     if let Some((lo, hi)) = spec.range
         && !(lo..=hi).contains(&value)
     {
         anyhow::bail!(
             "--{} must lie in [{lo}, {hi}] (its range in the graph file), got {value}",
-            name.replace('_', "-")
+            spec.name.replace('_', "-")
         );
     }
     Ok(())

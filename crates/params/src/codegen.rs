@@ -92,7 +92,10 @@ pub struct Field {
 pub struct Owner {
     /// "" for the run's parameters, else the node's name.
     pub node: String,
-    /// The struct's name (`RunParams`, `RecorderParams`, …).
+    /// The module of its parameters' modules (`run`, `recorder`, …): the node's name
+    /// without `causal_arm_`.
+    pub module: String,
+    /// The struct's name, from the module's (`RunParams`, `RecorderParams`, …).
     pub type_name: String,
     /// Whether the node also takes the run's parameters (run nodes and stand-ins).
     pub takes_run: bool,
@@ -111,7 +114,7 @@ const KEYWORDS: &[&str] = &[
 /// Reads every owner's declarations from the graph file's text.
 pub fn owners(text: &str) -> Result<Vec<Owner>, String> {
     let table: toml::Table = text.parse().map_err(|e| format!("{e}"))?;
-    let mut owners = vec![owner("", "RunParams", false, table.get("run_params"))?];
+    let mut owners = vec![owner("", "run", false, table.get("run_params"))?];
     for (section, takes_run) in [("nodes", true), ("stand_ins", true), ("servers", false)] {
         let nodes = table.get(section).and_then(|v| v.as_array());
         for node in nodes.into_iter().flatten() {
@@ -119,9 +122,8 @@ pub fn owners(text: &str) -> Result<Vec<Owner>, String> {
                 .get("name")
                 .and_then(|v| v.as_str())
                 .unwrap_or_default();
-            let short = name.strip_prefix("causal_arm_").unwrap_or(name);
-            let type_name = format!("{}Params", camel(short));
-            owners.push(owner(name, &type_name, takes_run, node.get("params"))?);
+            let module = name.strip_prefix("causal_arm_").unwrap_or(name);
+            owners.push(owner(name, module, takes_run, node.get("params"))?);
         }
     }
     Ok(owners)
@@ -129,7 +131,7 @@ pub fn owners(text: &str) -> Result<Vec<Owner>, String> {
 
 fn owner(
     node: &str,
-    type_name: &str,
+    module: &str,
     takes_run: bool,
     params: Option<&toml::Value>,
 ) -> Result<Owner, String> {
@@ -162,7 +164,8 @@ fn owner(
     }
     Ok(Owner {
         node: node.to_owned(),
-        type_name: type_name.to_owned(),
+        module: module.to_owned(),
+        type_name: format!("{}Params", camel(module)),
         takes_run,
         fields,
     })
@@ -274,19 +277,15 @@ fn emit_impl(out: &mut String, owner: &Owner) {
 }
 
 fn emit_field_modules(out: &mut String, owner: &Owner) {
-    let module = match owner.node.as_str() {
-        "" => "run".to_owned(),
-        node => node.strip_prefix("causal_arm_").unwrap_or(node).to_owned(),
-    };
     let _ = writeln!(
         out,
-        "\n/// One module per parameter of [`{}`]: its `--help` default and its one check.\npub mod {module} {{",
-        owner.type_name
+        "\n/// One module per parameter of [`{}`]: its `--help` default and its one check.\npub mod {} {{",
+        owner.type_name, owner.module
     );
     for f in &owner.fields {
         let _ = writeln!(
             out,
-            "    /// `{0}`: {1}\n    pub mod {0} {{\n        /// The name after `-p`.\n        pub const NAME: &str = {0:?};\n        /// The default in the graph file in use, as text (a command-line option's default).\n        pub fn default_text() -> &'static str {{\n            causal_arm_protocol::graph::default_text({2:?}, NAME)\n        }}\n        /// Parses and checks `raw` as the node does: the verdict of the CLI and the node alike.\n        pub fn parse(raw: &str) -> Result<{3}, crate::ParamError> {{\n            crate::parse_declared({2:?}, NAME, raw)\n        }}\n    }}",
+            "    /// `{0}`: {1}\n    pub mod {0} {{\n        /// The name after `-p`.\n        pub const NAME: &str = {0:?};\n        /// The default in the graph file in use, as text (a command-line option's default).\n        pub fn default_text() -> &'static str {{\n            causal_arm_protocol::graph::default_text({2:?}, NAME)\n        }}\n        /// Its declaration in the graph file in use (default, range, choices).\n        pub fn spec() -> Result<crate::ParamSpec, crate::ParamError> {{\n            crate::declared_spec({2:?}, NAME)\n        }}\n        /// Parses and checks `raw` as the node does: the verdict of the CLI and the node alike.\n        pub fn parse(raw: &str) -> Result<{3}, crate::ParamError> {{\n            crate::parse_declared({2:?}, NAME, raw)\n        }}\n    }}",
             f.name,
             f.description.replace('\n', " "),
             owner.node,

@@ -53,15 +53,29 @@ impl Params {
             name: name.to_owned(),
             problem: "is not declared".into(),
         })?;
-        T::from_value(value).ok_or_else(|| ParamError::Declared {
-            name: name.to_owned(),
-            problem: format!(
-                "is declared {}, but this program reads a {}",
-                value.kind(),
-                T::KIND
-            ),
-        })
+        read_as(name, value)
     }
+}
+
+/// `value` of parameter `name` as `T`, or why not (it was declared as another type).
+fn read_as<T: Typed>(name: &str, value: &ParamValue) -> Result<T, ParamError> {
+    T::from_value(value).ok_or_else(|| ParamError::Declared {
+        name: name.to_owned(),
+        problem: format!(
+            "is declared {}, but this program reads a {}",
+            value.kind(),
+            T::KIND
+        ),
+    })
+}
+
+/// A fault of the graph file in use (which has loaded, or this is not reached).
+fn graph_error(problem: String) -> ParamError {
+    let source_name = graph().map_or_else(|e| e.source_name, |g| g.source_name().to_owned());
+    ParamError::Graph(GraphError {
+        source_name,
+        problem,
+    })
 }
 
 /// `name:=value`, as the launcher passes a parameter after `-p`.
@@ -78,7 +92,6 @@ pub fn declared_specs(
     declared: &[(&str, ParamKind)],
     takes_run: bool,
 ) -> Result<Vec<ParamSpec>, ParamError> {
-    let graph = graph()?;
     let own = decls_of(node)?;
     let mut specs: Vec<ParamSpec> = match takes_run {
         true => RunParams::specs()?,
@@ -86,37 +99,31 @@ pub fn declared_specs(
     };
     if own.len() != declared.len() {
         let names = |d: &[&str]| d.join(", ");
-        return Err(ParamError::Graph(GraphError {
-            source_name: graph.source_name().to_owned(),
-            problem: format!(
-                "{} declares parameters [{}]; this program was built with [{}]",
-                owner_name(node),
-                names(&own.iter().map(|p| p.name.as_str()).collect::<Vec<_>>()),
-                names(&declared.iter().map(|(n, _)| *n).collect::<Vec<_>>())
-            ),
-        }));
+        return Err(graph_error(format!(
+            "{} declares parameters [{}]; this program was built with [{}]",
+            owner_name(node),
+            names(&own.iter().map(|p| p.name.as_str()).collect::<Vec<_>>()),
+            names(&declared.iter().map(|(n, _)| *n).collect::<Vec<_>>())
+        )));
     }
     for (decl, (name, kind)) in own.iter().zip(declared) {
         let spec = ParamSpec::from(decl);
         if decl.name != *name || spec.default.kind() != *kind {
-            return Err(ParamError::Graph(GraphError {
-                source_name: graph.source_name().to_owned(),
-                problem: format!(
-                    "{} parameter {}: default of type {}; this program was built with {name} of type {kind}",
-                    owner_name(node),
-                    decl.name,
-                    spec.default.kind()
-                ),
-            }));
+            return Err(graph_error(format!(
+                "{} parameter {}: default of type {}; this program was built with {name} of type {kind}",
+                owner_name(node),
+                decl.name,
+                spec.default.kind()
+            )));
         }
         specs.push(spec);
     }
     Ok(specs)
 }
 
-/// Parses and checks `raw` for parameter `name` of `node` as the node does, so a
-/// command-line option and `-p` get the same verdict in the same words.
-pub fn parse_declared<T: Typed>(node: &str, name: &str, raw: &str) -> Result<T, ParamError> {
+/// The declaration of parameter `name` of `node` ("" for a run parameter) in the graph
+/// file in use: its default, range and choices.
+pub fn declared_spec(node: &str, name: &str) -> Result<ParamSpec, ParamError> {
     let decl = decls_of(node)?
         .iter()
         .find(|p| p.name == name)
@@ -124,15 +131,13 @@ pub fn parse_declared<T: Typed>(node: &str, name: &str, raw: &str) -> Result<T, 
             name: name.to_owned(),
             problem: format!("is not declared for {}", owner_name(node)),
         })?;
-    let value = ParamSpec::from(decl).parse(raw)?;
-    T::from_value(&value).ok_or_else(|| ParamError::Declared {
-        name: name.to_owned(),
-        problem: format!(
-            "is declared {}, but this program reads a {}",
-            value.kind(),
-            T::KIND
-        ),
-    })
+    Ok(ParamSpec::from(decl))
+}
+
+/// Parses and checks `raw` for parameter `name` of `node` as the node does, so a
+/// command-line option and `-p` get the same verdict in the same words.
+pub fn parse_declared<T: Typed>(node: &str, name: &str, raw: &str) -> Result<T, ParamError> {
+    read_as(name, &declared_spec(node, name)?.parse(raw)?)
 }
 
 fn decls_of(node: &str) -> Result<&'static [ParamDecl], ParamError> {
@@ -140,16 +145,11 @@ fn decls_of(node: &str) -> Result<&'static [ParamDecl], ParamError> {
     if node.is_empty() {
         return Ok(&graph.run_params);
     }
-    let all = graph
-        .nodes
-        .iter()
-        .chain(&graph.stand_ins)
-        .chain(&graph.servers);
-    let decl: &NodeDecl = all.into_iter().find(|n| n.name == node).ok_or_else(|| {
-        ParamError::Graph(GraphError {
-            source_name: graph.source_name().to_owned(),
-            problem: format!("it declares no node {node}, which this program was built with"),
-        })
+    let server = || graph.servers.iter().find(|n| n.name == node);
+    let decl: &NodeDecl = graph.node(node).or_else(server).ok_or_else(|| {
+        graph_error(format!(
+            "it declares no node {node}, which this program was built with"
+        ))
     })?;
     Ok(&decl.params)
 }

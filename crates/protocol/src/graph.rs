@@ -250,16 +250,6 @@ impl GraphSpec {
             .filter(move |n| n.publishes.iter().any(|t| t == topic))
     }
 
-    /// The serving node `name`.
-    pub fn server(&self, name: &str) -> Option<&NodeDecl> {
-        self.servers.iter().find(|n| n.name == name)
-    }
-
-    /// Parameter `param` of serving node `server`, or `None` if it declares none such.
-    pub fn server_param(&self, server: &str, param: &str) -> Option<&ParamDecl> {
-        self.server(server)?.params.iter().find(|p| p.name == param)
-    }
-
     /// The nodes that subscribe `topic`: the readers a publisher must see matched before
     /// its first sample, which a volatile topic would not deliver to a later reader.
     pub fn subscribers_of<'a>(&'a self, topic: &'a str) -> impl Iterator<Item = &'a NodeDecl> {
@@ -306,12 +296,6 @@ static GRAPH: LazyLock<Result<GraphSpec, GraphError>> = LazyLock::new(GraphSpec:
 /// The graph every program of this run uses (loaded once).
 pub fn graph() -> Result<&'static GraphSpec, GraphError> {
     GRAPH.as_ref().map_err(GraphError::clone)
-}
-
-/// The embedded graph's range of numeric parameter `param` of serving node `server`, so a
-/// library checks a setting against the bounds the node declares (`None`: no range).
-pub fn server_param_range(server: &str, param: &str) -> Option<[f64; 2]> {
-    graph().ok()?.server_param(server, param)?.range
 }
 
 /// Owner of the run parameters in the table of [`default_text`] (no node has this name).

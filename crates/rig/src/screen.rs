@@ -31,23 +31,19 @@ impl Screen {
     /// Subscribes `node` to `ros_discovery_info`, trusting as its `trusted_publishers`
     /// parameter says.
     pub fn new(node: &mut RosNode, trusted_publishers: &str) -> anyhow::Result<Self> {
-        Self::with_setting(node, trusted_publishers.to_owned())
+        Ok(Self {
+            announcements: node.discovery_info()?,
+            directory: RefCell::new(WriterDirectory::default()),
+            setting: trusted_publishers.to_owned(),
+            namespace: node.namespace().to_owned(),
+            unreadable: std::cell::Cell::new(0),
+        })
     }
 
     /// For a node outside the graph file (the launcher following the run): trusts each
     /// topic's publishers as the graph file names them.
     pub fn of_graph_file(node: &mut RosNode) -> anyhow::Result<Self> {
-        Self::with_setting(node, String::new())
-    }
-
-    fn with_setting(node: &mut RosNode, setting: String) -> anyhow::Result<Self> {
-        Ok(Self {
-            announcements: node.discovery_info()?,
-            directory: RefCell::new(WriterDirectory::default()),
-            setting,
-            namespace: node.namespace().to_owned(),
-            unreadable: std::cell::Cell::new(0),
-        })
+        Self::new(node, "")
     }
 
     /// The nodes `topic`'s samples are accepted from.

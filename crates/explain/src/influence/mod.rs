@@ -11,6 +11,7 @@
 
 use causal_arm_dataset::{Context, ContextReader, Dataset, angular_features, wrap_angle};
 use causal_arm_models::LoadedModel;
+use causal_arm_params::{ExplainerParams, explainer};
 use causal_arm_scoring::EdgeClaims;
 use rand::rngs::StdRng;
 use rand::seq::index::sample;
@@ -322,11 +323,13 @@ impl InfluenceSettings {
     /// Checks the settings a user gives (κ within the range the explainer node declares in
     /// launch_scripts/graph.toml): the one check of the CLI, the node and the library.
     pub fn validate(&self) -> Result<()> {
-        let [low, high] = causal_arm_protocol::graph::server_param_range(KAPPA_OWNER, "kappa")
-            .unwrap_or([0.0, f64::MAX]);
+        let (low, high) = (explainer::kappa::spec().ok())
+            .and_then(|spec| spec.range)
+            .unwrap_or((0.0, f64::MAX));
         if !(self.kappa.is_finite() && self.kappa >= low && self.kappa <= high) {
             return Err(ExplainError::Options(format!(
-                "kappa must lie in [{low:e}, {high:e}] (parameter kappa of {KAPPA_OWNER} in launch_scripts/graph.toml), got {}",
+                "kappa must lie in [{low:e}, {high:e}] (parameter kappa of {} in launch_scripts/graph.toml), got {}",
+                ExplainerParams::NODE,
                 self.kappa
             )));
         }
@@ -339,9 +342,6 @@ impl InfluenceSettings {
         Ok(())
     }
 }
-
-/// The node that declares κ's range.
-const KAPPA_OWNER: &str = "causal_arm_explainer";
 
 /// Mean absolute error of the forward model on every state feature (angles wrapped), over
 /// `rows` of `data`: the floor below which an effect is indistinguishable from error. It is

@@ -248,6 +248,8 @@ def test_launch_over_dds_equals_generate(run_cli, causal_arm_bin, tmp_path, priv
                 env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     assert str(dds) in r.stdout
+    # Every node stops with the run: none is waited for until the launcher kills it.
+    assert "did not stop" not in r.stderr, r.stderr[-3000:]
     local = tmp_path / "local"
     r = run_cli("generate", "exp2", "--episodes", "1", "--seed", "8", *flags, "--out", local)
     assert r.returncode == 0, r.stderr

@@ -112,6 +112,11 @@ pub struct DataTest {
     /// [`crate::INTERMITTENT_SHARE`] of the rows), so tested within each context too.
     #[serde(default)]
     pub intermittent: Vec<bool>,
+    /// The transitions the test needs when the data has fewer (twice the design's
+    /// columns): then no pair is tested, and every edge of a feature that changed is
+    /// undecided, saying so. Too little data is an answer, not an error.
+    #[serde(default)]
+    pub rows_needed: Option<usize>,
     /// Wall time, s.
     pub seconds: f64,
 }
@@ -149,13 +154,10 @@ impl DataTest {
         let started = std::time::Instant::now();
         let design = Design::build(changes, settings.terms);
         let (n, p) = design.x.shape();
-        if n == 0 || n < 2 * p {
-            return Err(DiscoveryError::Options(format!(
-                "the data test needs at least {} transitions for its {p} columns, it has {n}",
-                2 * p
-            )));
-        }
         let ns = data.state_width();
+        if n < 2 * p {
+            return Ok(Self::untested(changes, data, settings, 2 * p, started));
+        }
         let clusters = changes.clusters.as_deref().map(cluster_index);
         // Within contexts at one step only: h steps on, the scripted phases' later
         // commands depend on the context, which then confounds the test.
@@ -186,8 +188,46 @@ impl DataTest {
             intermittent,
             changes: (0..ns).map(|k| changes.ever_changes(k)).collect(),
             resolution: changes.resolution.clone(),
+            rows_needed: None,
             seconds: started.elapsed().as_secs_f64(),
         })
+    }
+
+    /// The test on data too small for its design (`needed` transitions): no pair tested,
+    /// what the data shows of each feature kept.
+    fn untested(
+        changes: &Changes,
+        data: &Dataset,
+        settings: &GrangerSettings,
+        needed: usize,
+        started: std::time::Instant,
+    ) -> Self {
+        let (na, ns) = (data.action_width(), data.state_width());
+        let n = changes.rows.len();
+        Self {
+            settings: settings.clone(),
+            action_names: action_names(data.experiment),
+            state_names: state_names(data.experiment),
+            horizon: changes.horizon,
+            rows: n,
+            data_rows: data.rows(),
+            pairs: vec![vec![PairTest::untested(0.0, n); ns]; na],
+            within: Vec::new(),
+            intermittent: vec![false; ns],
+            changes: (0..ns).map(|k| changes.ever_changes(k)).collect(),
+            resolution: changes.resolution.clone(),
+            rows_needed: Some(needed),
+            seconds: started.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// Why no pair was tested, when the data is too small for the design.
+    fn too_few_words(&self) -> Option<String> {
+        let needed = self.rows_needed?;
+        Some(format!(
+            "the data test needs at least {needed} transitions for its design, the data has {}",
+            self.rows
+        ))
     }
 
     /// The change of s_k predicted to within this RMS is predicted to its resolution.
@@ -267,6 +307,10 @@ impl DataTest {
     pub fn anchor_claims(&self, method: &str) -> EdgeClaims {
         let level = self.level();
         let mut claims = self.claims_frame(method);
+        if let Some(words) = self.too_few_words() {
+            claims.rule = format!("not run: {words}; no edge claimed");
+            return claims;
+        }
         claims.rule = format!(
             "drives when the {} has p < {:.1e} (family-wise {} with Bonferroni over {} pairs), {} transitions",
             self.test_words(),
@@ -283,11 +327,9 @@ impl DataTest {
         claims
     }
 
-    /// Three-valued claims: drives where the test decides, does not where the feature
-    /// never changes or is predicted to its resolution without the action, else undecided.
-    pub fn claims(&self, method: &str) -> EdgeClaims {
-        let mut claims = self.claims_frame(method);
-        claims.rule = format!(
+    /// The three-valued rule in words, for a test that ran.
+    fn rule_words(&self) -> String {
+        format!(
             "data: drives when the {}{} has p < {:.1e} (family-wise {}, Bonferroni over every test); does not when s_k never changes or is predicted without a_j to within {} x its f32 resolution; else undecided ({} of {} transitions)",
             self.test_words(),
             self.context_words(),
@@ -296,7 +338,19 @@ impl DataTest {
             self.settings.resolution_margin,
             self.rows,
             self.data_rows
-        );
+        )
+    }
+
+    /// Three-valued claims: drives where the test decides, does not where the feature
+    /// never changes or is predicted to its resolution without the action, else undecided.
+    pub fn claims(&self, method: &str) -> EdgeClaims {
+        let mut claims = self.claims_frame(method);
+        claims.rule = match self.too_few_words() {
+            Some(words) => {
+                format!("data: not run: {words}; does not where s_k never changed, else undecided")
+            }
+            None => self.rule_words(),
+        };
         let decisions: Vec<Vec<Decision>> = (0..self.action_names.len())
             .map(|a| {
                 (0..self.state_names.len())
@@ -334,7 +388,7 @@ impl DataTest {
             reason,
             to_decide: to_decide.into(),
         };
-        if !self.changes[k] {
+        if !self.changes[k] && self.rows > 0 {
             return decision(
                 Verdict::DoesNot,
                 format!(
@@ -342,6 +396,16 @@ impl DataTest {
                     self.rows
                 ),
                 "",
+            );
+        }
+        if let (Some(needed), Some(words)) = (self.rows_needed, self.too_few_words()) {
+            return decision(
+                Verdict::Undecided,
+                words,
+                &format!(
+                    "{} more transitions (the data test), or a forward model whose error on this feature is below the effect",
+                    needed - self.rows
+                ),
             );
         }
         if t.dof == 0 {

@@ -122,10 +122,41 @@ fn a_placebo_action_is_never_claimed() {
 }
 
 #[test]
-fn too_few_rows_and_bad_settings_are_refused_with_the_reason() {
+fn too_few_rows_leave_every_edge_of_a_changing_feature_undecided_saying_how_many_would_do() {
     let data = hand_built(50, 3);
-    let err = DataTest::run(&data, &GrangerSettings::data_test()).unwrap_err();
-    assert!(err.to_string().contains("needs at least"), "{err}");
+    let test = DataTest::run(&data, &GrangerSettings::data_test()).unwrap();
+    let needed = test
+        .rows_needed
+        .expect("50 rows are too few for the full design");
+    assert!(needed > 50, "{needed}");
+    let claims = test.claims("data");
+    assert!(claims.rule.contains("not run"), "{}", claims.rule);
+    for a in 0..7 {
+        for k in 0..10 {
+            let d = test.decide(a, k);
+            assert_eq!(d.verdict, Verdict::Undecided, "a{a} -> {k}: {d:?}");
+            assert!(
+                d.reason.contains(&format!("at least {needed} transitions")),
+                "{d:?}"
+            );
+            assert!(
+                d.to_decide.starts_with(&format!("{} more", needed - 50)),
+                "{d:?}"
+            );
+        }
+    }
+    let anchor = granger_claims(&data, Terms::Linear, "granger").unwrap();
+    assert!(anchor.rule.starts_with("not run"), "{}", anchor.rule);
+    assert!(anchor.drives.iter().flatten().all(|d| !d));
+    let none = DataTest::run(&hand_built(0, 3), &GrangerSettings::data_test()).unwrap();
+    assert!(
+        (0..10).all(|k| none.decide(0, k).verdict == Verdict::Undecided),
+        "no rows deny nothing"
+    );
+}
+
+#[test]
+fn bad_settings_are_refused_with_the_reason() {
     let mut bad = GrangerSettings::data_test();
     bad.alpha = 0.0;
     let err = DataTest::run(&hand_built(500, 3), &bad).unwrap_err();

@@ -34,15 +34,19 @@ pub struct StateVerdict {
     pub driven_by: Vec<String>,
     /// Largest decision score any action has on it.
     pub decision_score: f64,
+    /// No action drives it, and some edge to it is undecided (three-valued decisions):
+    /// it is not known to be unaffected.
+    #[serde(default)]
+    pub undecided: bool,
 }
 
 impl StateVerdict {
     /// The verdict in words, as the CSV and the CLI print it.
     pub fn verdict(&self) -> &'static str {
-        if self.affected {
-            "relevant"
-        } else {
-            "not affected by any action"
+        match (self.affected, self.undecided) {
+            (true, _) => "relevant",
+            (false, true) => "undecided",
+            (false, false) => "not affected by any action",
         }
     }
 }
@@ -85,7 +89,8 @@ pub struct Relevance {
     pub states: Vec<StateVerdict>,
     /// One entry per action, in action order.
     pub actions: Vec<ActionVerdict>,
-    /// State features no action affects (candidates for removal from the state space).
+    /// State features no action affects (candidates for removal from the state space); an
+    /// undecided one is not among them.
     pub unaffected: Vec<String>,
     /// Claim set the verdicts are (`kernel+cai+data`, the default; `kernel` for today's rule).
     pub decision_method: String,
@@ -191,6 +196,8 @@ fn build(explanation: &Explanation, threshold: f64, decision: &EdgeClaims) -> Re
                 decision_score: (0..actions.len())
                     .map(|a| decided[a][j])
                     .fold(f64::NEG_INFINITY, f64::max),
+                undecided: (0..actions.len())
+                    .any(|a| decision.verdict(a, j) == causal_arm_scoring::Verdict::Undecided),
             }
         })
         .collect();
@@ -223,7 +230,7 @@ fn build(explanation: &Explanation, threshold: f64, decision: &EdgeClaims) -> Re
         ),
         unaffected: state_verdicts
             .iter()
-            .filter(|v| !v.affected)
+            .filter(|v| !v.affected && !v.undecided)
             .map(|v| v.name.clone())
             .collect(),
         action_names: actions,

@@ -32,25 +32,38 @@ pub struct ComposedNode {
     /// The graph file's name of the node.
     pub name: String,
     handle: Option<JoinHandle<anyhow::Result<()>>>,
+    /// How it ended, once joined: kept, so it is the same at every ask, as a process's
+    /// exit status is.
+    outcome: Option<Result<(), String>>,
 }
 
 impl ComposedNode {
-    /// The node's result once it has ended (`None` while it runs); a panic is an error.
-    pub fn try_finish(&mut self) -> Option<anyhow::Result<()>> {
-        if !self.handle.as_ref()?.is_finished() {
-            return None;
+    pub(crate) fn new(name: String, handle: JoinHandle<anyhow::Result<()>>) -> Self {
+        Self {
+            name,
+            handle: Some(handle),
+            outcome: None,
         }
-        self.finish()
     }
 
-    /// Waits for the node to end and gives its result (`None` if already given).
-    pub fn finish(&mut self) -> Option<anyhow::Result<()>> {
-        let handle = self.handle.take()?;
-        Some(
-            handle
-                .join()
-                .unwrap_or_else(|_| Err(anyhow!("{} panicked", self.name))),
-        )
+    /// The node's outcome once it has ended (`None` while it runs); a panic is an error.
+    pub fn outcome(&mut self) -> Option<&Result<(), String>> {
+        if self.handle.as_ref().is_some_and(JoinHandle::is_finished) {
+            self.join();
+        }
+        self.outcome.as_ref()
+    }
+
+    /// Waits for the node to end and gives its outcome.
+    pub fn join(&mut self) -> &Result<(), String> {
+        if let Some(handle) = self.handle.take() {
+            self.outcome = Some(match handle.join() {
+                Ok(result) => result.map_err(|e| format!("{e:#}")),
+                Err(_) => Err(format!("{} panicked", self.name)),
+            });
+        }
+        self.outcome
+            .get_or_insert_with(|| Err("never started".to_owned()))
     }
 }
 
@@ -77,10 +90,7 @@ pub fn spawn(nodes: Vec<(String, RosArgs)>) -> anyhow::Result<Vec<ComposedNode>>
         let handle = std::thread::Builder::new()
             .name(name.clone())
             .spawn(move || run_node(&bus, &thread_name, &args, entry))?;
-        running.push(ComposedNode {
-            name,
-            handle: Some(handle),
-        });
+        running.push(ComposedNode::new(name, handle));
     }
     Ok(running)
 }
@@ -95,4 +105,33 @@ fn run_node(bus: &IntraBus, name: &str, args: &RosArgs, entry: Entry) -> anyhow:
         stop_flag().store(true, Ordering::SeqCst);
     }
     outcome
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_node_that_ended_keeps_its_outcome_at_every_ask() {
+        let ok = std::thread::spawn(|| Ok(()));
+        let failed = std::thread::spawn(|| Err(anyhow!("no bag")));
+        let mut nodes = [
+            ComposedNode::new("ok".into(), ok),
+            ComposedNode::new("failed".into(), failed),
+        ];
+        for node in &mut nodes {
+            node.join();
+        }
+        for _ in 0..3 {
+            assert_eq!(nodes[0].outcome(), Some(&Ok(())));
+            assert_eq!(nodes[1].outcome(), Some(&Err("no bag".to_owned())));
+        }
+    }
+
+    #[test]
+    fn a_panic_is_an_error_naming_the_node() {
+        let handle = std::thread::spawn(|| -> anyhow::Result<()> { panic!("boom") });
+        let mut node = ComposedNode::new("sim".into(), handle);
+        assert_eq!(node.join(), &Err("sim panicked".to_owned()));
+    }
 }

@@ -150,7 +150,7 @@ impl Started for ComposedNode {
     }
 
     fn exited(&mut self) -> anyhow::Result<Option<Result<(), String>>> {
-        Ok(self.try_finish().map(|r| r.map_err(|e| format!("{e:#}"))))
+        Ok(self.outcome().cloned())
     }
 
     /// Composed nodes share the process's stop flag, as they share its signals.
@@ -161,8 +161,8 @@ impl Started for ComposedNode {
     /// A thread cannot be killed: it is asked to stop and joined.
     fn kill(&mut self) -> anyhow::Result<()> {
         self.interrupt();
-        if let Some(Err(e)) = self.finish() {
-            tracing::warn!("{}: {e:#}", self.name);
+        if let Err(e) = self.join().clone() {
+            tracing::warn!("{}: {e}", self.name);
         }
         Ok(())
     }
@@ -294,6 +294,28 @@ mod tests {
             err.to_string().contains("no causal_arm_ghost stand-in"),
             "{err}"
         );
+    }
+
+    /// The regression of every composed run: a node that had ended before the recorder
+    /// was seen as running again once its outcome had been read, and waited for 10 s.
+    #[test]
+    fn composed_nodes_that_ended_are_not_waited_for_again() {
+        let mut nodes: Vec<ComposedNode> = (0..2)
+            .map(|i| ComposedNode::new(format!("node {i}"), std::thread::spawn(|| Ok(()))))
+            .collect();
+        for node in &mut nodes {
+            while node.exited().unwrap().is_none() {
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        }
+        let started = std::time::Instant::now();
+        stop_all(&mut nodes, std::time::Duration::from_secs(10)).unwrap();
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(1),
+            "waited {:?} for nodes that had ended",
+            started.elapsed()
+        );
+        assert_eq!(nodes[0].exited().unwrap(), Some(Ok(())));
     }
 
     #[test]

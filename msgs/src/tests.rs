@@ -228,7 +228,7 @@ fn big_endian_and_short_names() {
     assert!(visit_message_type("causal_arm_msgs/PredictNextState_Request", Definition).is_ok());
     assert!(visit_message_type("causal_arm_msgs/srv/PredictNextState", Definition).is_err());
     assert_eq!(service_types().len(), 11);
-    assert_eq!(message_types().len(), 60);
+    assert_eq!(message_types().len(), 61);
     let mut trailing = to_cdr(&h).unwrap();
     trailing.extend_from_slice(&[0; 8]);
     assert!(

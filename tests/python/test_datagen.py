@@ -86,6 +86,44 @@ def test_exp1_actions_follow_the_babbling_distribution(exp1_bag):
     np.testing.assert_allclose(deltas, targets - positions, atol=1e-12)
 
 
+SCRIPTED, NORMAL, CATEGORICAL = 0, 1, 2
+
+
+def test_each_action_says_how_it_was_drawn(exp1_bag, exp2_bag):
+    """Action.design, read with rosbags from the schema in the bag: exp1 draws every joint
+    from the paper's N(0, 0.35^2) whatever the state; exp2 scripts its reaching and placing,
+    draws its moves around the joints it is at and its magnet while babbling, and the kept
+    moves are N(0, 1) in units of their spread."""
+    topics = read_bag(exp1_bag)
+    for _, m in topics["/babbler/action"]:
+        assert [d.family for d in m.design] == [NORMAL] * 7
+        assert all(d.center == 0.0 and d.scale == 0.35 and d.lower <= t <= d.upper
+                   for d, t in zip(m.design, m.joint_targets))
+    assert "N(0, 0.35^2)" in custom_data(exp1_bag)["causal_arm.design"]
+
+    topics = read_bag(exp2_bag)
+    positions = [m.position for _, m in topics["/joint_states"]]
+    families, z = [], []
+    for (_, m), q in zip(topics["/babbler/action"], positions):
+        assert len(m.design) == 8
+        joints, magnet = m.design[:7], m.design[7]
+        assert len({d.family for d in joints}) == 1, "the joints are drawn together"
+        families.append((joints[0].family, magnet.family))
+        if magnet.family == CATEGORICAL:
+            assert m.magnet in magnet.values and abs(sum(magnet.probabilities) - 1) < 1e-12
+        if joints[0].family == NORMAL:
+            for d, t, qi in zip(joints, m.joint_targets, q):
+                assert d.center == qi and d.lower <= t <= d.upper and d.tries == 20
+                if d.lower < t < d.upper:
+                    z.append((t - d.center) / d.scale)
+    kinds = {f for f in families}
+    assert (SCRIPTED, SCRIPTED) in kinds, "the reaching is scripted"
+    assert (NORMAL, CATEGORICAL) in kinds, "babbling draws its moves and the magnet"
+    assert (NORMAL, SCRIPTED) in kinds, "moves while holding or releasing"
+    assert abs(np.mean(z)) < 0.05 and 0.85 < np.std(z) < 1.05, (np.mean(z), np.std(z))
+    assert "scripted" in custom_data(exp2_bag)["causal_arm.design"]
+
+
 def test_exp2_cube_moves_only_while_held(exp2_bag):
     topics = read_bag(exp2_bag)
     z = np.array([m.pose.position.z for _, m in topics["/object/pose"]])

@@ -45,7 +45,7 @@ def test_discover_decides_three_ways_and_is_right_where_it_decides(run_cli, runs
     undecided = [d for row in data["decisions"] for d in row if d["verdict"] == "undecided"]
     assert all(d["reason"] and d["to_decide"] for d in undecided)
     counts = {v: int((verdicts == v).sum()) for v in ("drives", "does-not", "undecided")}
-    assert f"verdicts: {counts['drives']} drives, {counts['does-not']} does not, {counts['undecided']} undecided" in r.stdout
+    assert f"verdicts (data): {counts['drives']} drives, {counts['does-not']} does not, {counts['undecided']} undecided" in r.stdout
     rows = json.loads((out / "scores.json").read_text())
     headline = {r["method"]: r["scores"] for r in rows if r["context"] == "all" and r["block"] == "all"}
     assert headline["data"]["precision"] == 1.0 and headline["data"]["false_denials"] == 0

@@ -11,7 +11,7 @@
 //!   number of steps, switches the magnet off (the cube drops) and babbles again.
 
 use causal_arm_kinematics::{ArmModel, IkOptions, IkTarget};
-use causal_arm_protocol::{ARM_DOF, Command, SimState, scene};
+use causal_arm_protocol::{ARM_DOF, Command, Design, Draw, Drawn, SimState, ToolRegion, scene};
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use rand_distr::{Distribution, Normal};
 
@@ -33,6 +33,16 @@ impl Default for Exp1Config {
             sigma: causal_arm_protocol::graph::run_default_f64("sigma"),
             seed: 0,
         }
+    }
+}
+
+impl Exp1Config {
+    /// The design in words, for the bag's metadata.
+    pub fn design_words(&self) -> String {
+        format!(
+            "exp1: every step each joint's target ~ clamp(mean + N(0, {}^2), its limits), mean {:?} rad, independent of the state and of the other joints; no scripted steps",
+            self.sigma, self.mean
+        )
     }
 }
 
@@ -79,15 +89,50 @@ impl Exp1Babbler {
     }
 
     /// The next command.
-    pub fn next(&mut self, _state: &SimState) -> Command {
+    pub fn next(&mut self, state: &SimState) -> Command {
+        self.next_drawn(state).command
+    }
+
+    /// The next command and how it was drawn: each joint's target from N(mean, σ²),
+    /// clamped to its limits, whatever the state.
+    pub fn next_drawn(&mut self, _state: &SimState) -> Drawn {
         let joint_targets = std::array::from_fn(|i| {
             (self.mean[i] + self.normal.sample(&mut self.rng)).clamp(self.lower[i], self.upper[i])
         });
-        Command {
-            joint_targets,
-            magnet: 0,
+        let sigma = self.normal.std_dev();
+        let design = (0..ARM_DOF)
+            .map(|i| match sigma > 0.0 {
+                true => Draw::Normal {
+                    center: self.mean[i],
+                    sigma,
+                    lower: self.lower[i],
+                    upper: self.upper[i],
+                    region: None,
+                },
+                false => Draw::Scripted,
+            })
+            .collect();
+        Drawn {
+            command: Command {
+                joint_targets,
+                magnet: 0,
+            },
+            design,
         }
     }
+}
+
+/// Redraws of a random move before the babbler holds the arm instead.
+const MOVE_TRIES: u32 = 20;
+
+/// How the joints of the step being chosen were drawn (experiment 2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum JointDraw {
+    /// Set by the script (IK, holding still).
+    Scripted,
+    /// A random move of spread `sigma` around the current configuration, kept inside the
+    /// safe region (over the table area too when `over_table`).
+    Near { sigma: f64, over_table: bool },
 }
 
 /// Settings of experiment 2.
@@ -162,6 +207,31 @@ impl Default for Exp2Config {
     }
 }
 
+impl Exp2Config {
+    /// The design in words, for the bag's metadata.
+    pub fn design_words(&self) -> String {
+        let floor = self.table_top_z + self.min_clearance;
+        let ([cx, cy], [hx, hy]) = self.table_area;
+        let switching = match self.move_while_switching {
+            true => "the arm moves as it babbles",
+            false => "the arm holds still",
+        };
+        format!(
+            "exp2: babbling: joint targets ~ clamp(theta + N(0, {b}^2), limits), redrawn together (up to {MOVE_TRIES} tries, else held: scripted) until the tool is at z >= {floor:.3} m; \
+             magnet on with probability {on} once {min} babbling steps have passed (then {switching}), off with probability {off}, else keep; \
+             holding: targets ~ clamp(theta + N(0, {m}^2), limits) with the tool also over |x - {cx}| <= {hx}, |y - {cy}| <= {hy}, magnet keep (scripted); \
+             release: targets ~ clamp(theta + N(0, {r}^2), limits) above z >= {floor:.3} m, magnet off (scripted); \
+             approach, descend, lift and place: IK from the state and the cube (scripted)",
+            b = self.babble_sigma,
+            on = self.switch_on_probability,
+            min = self.min_babble_steps,
+            off = self.spurious_off_probability,
+            m = self.manoeuvre_sigma,
+            r = self.babble_sigma / 3.0,
+        )
+    }
+}
+
 /// Where the exp 2 babbler is in its cycle.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Phase {
@@ -189,6 +259,10 @@ pub struct Exp2Babbler {
     phase: Phase,
     ik_seed: u64,
     ik_cache: Option<(IkTarget, [f64; ARM_DOF])>,
+    /// How the step being chosen drew its joints and its magnet command (values and
+    /// probabilities); reset at every step.
+    joint_draw: JointDraw,
+    magnet_draw: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 impl Exp2Babbler {
@@ -218,6 +292,8 @@ impl Exp2Babbler {
             upper,
             ik_seed: 0,
             ik_cache: None,
+            joint_draw: JointDraw::Scripted,
+            magnet_draw: None,
         })
     }
 
@@ -238,7 +314,7 @@ impl Exp2Babbler {
     fn random_near(&mut self, q: &[f64; ARM_DOF], sigma: f64, over_table: bool) -> [f64; ARM_DOF] {
         let normal = Normal::new(0.0, sigma.max(1e-9)).expect("positive sigma");
         let floor = self.config.table_top_z + self.config.min_clearance;
-        for _ in 0..20 {
+        for _ in 0..MOVE_TRIES {
             let candidate: [f64; ARM_DOF] = std::array::from_fn(|i| {
                 (q[i] + normal.sample(&mut self.rng)).clamp(self.lower[i], self.upper[i])
             });
@@ -248,11 +324,45 @@ impl Exp2Babbler {
                 t.z >= floor && (!over_table || ((t.x - cx).abs() <= hx && (t.y - cy).abs() <= hy))
             });
             if ok {
+                self.joint_draw = JointDraw::Near { sigma, over_table };
                 return candidate;
             }
         }
         // No safe random move found: stay where we are.
         *q
+    }
+
+    /// The region a random move of the joints must keep the tool in.
+    fn region(&self, over_table: bool) -> ToolRegion {
+        let ([cx, cy], [hx, hy]) = self.config.table_area;
+        ToolRegion {
+            tries: MOVE_TRIES,
+            min_tool_z: self.config.table_top_z + self.config.min_clearance,
+            tool_area: over_table.then_some([cx, cy, hx, hy]),
+        }
+    }
+
+    /// How the step just chosen from joint positions `q` was drawn: the joints, then the
+    /// magnet.
+    fn design(&self, q: &[f64; ARM_DOF]) -> Design {
+        let joints = (0..ARM_DOF).map(|i| match self.joint_draw {
+            JointDraw::Near { sigma, over_table } if sigma > 0.0 => Draw::Normal {
+                center: q[i],
+                sigma,
+                lower: self.lower[i],
+                upper: self.upper[i],
+                region: Some(self.region(over_table)),
+            },
+            _ => Draw::Scripted,
+        });
+        let magnet = match &self.magnet_draw {
+            Some((values, probabilities)) if values.len() > 1 => Draw::Categorical {
+                values: values.clone(),
+                probabilities: probabilities.clone(),
+            },
+            _ => Draw::Scripted,
+        };
+        joints.chain(std::iter::once(magnet)).collect()
     }
 
     /// IK for `target`, solved once per distinct target: while the babbler approaches or
@@ -290,13 +400,42 @@ impl Exp2Babbler {
 
     /// The next command for `state`.
     pub fn next(&mut self, state: &SimState) -> Command {
-        match self.phase.clone() {
+        self.next_drawn(state).command
+    }
+
+    /// The next command for `state` and how it was drawn: random moves and the magnet's
+    /// switch-on while babbling, random moves while holding and at the release; the
+    /// reaching, lifting and placing are scripted.
+    pub fn next_drawn(&mut self, state: &SimState) -> Drawn {
+        self.joint_draw = JointDraw::Scripted;
+        self.magnet_draw = None;
+        let command = match self.phase.clone() {
             Phase::Babble { min_remaining } => self.babble(&state.joint_positions, min_remaining),
             Phase::Approach { steps } => self.approach(state, steps),
             Phase::Descend { steps } => self.descend(state, steps),
             Phase::Manoeuvre { remaining } => self.manoeuvre(state, remaining),
             Phase::Place { steps, x, y } => self.place(state, steps, x, y),
+        };
+        Drawn {
+            design: self.design(&state.joint_positions),
+            command,
         }
+    }
+
+    /// The magnet command's distribution while babbling: on with the switch-on
+    /// probability once the babbling has lasted long enough, else a spurious off with its
+    /// probability, else keep (values with a positive probability only).
+    fn babble_magnet_draw(&self, may_switch_on: bool) -> (Vec<f64>, Vec<f64>) {
+        let on = if may_switch_on {
+            self.config.switch_on_probability
+        } else {
+            0.0
+        };
+        let off = (1.0 - on) * self.config.spurious_off_probability;
+        [(-1.0, off), (0.0, 1.0 - on - off), (1.0, on)]
+            .into_iter()
+            .filter(|&(_, p)| p > 0.0)
+            .unzip()
     }
 
     /// Empty-handed babbling near `q`; at random switches the magnet on and starts the
@@ -305,9 +444,14 @@ impl Exp2Babbler {
         let switch_on =
             min_remaining == 0 && self.rng.random_bool(self.config.switch_on_probability);
         let spurious_off = self.rng.random_bool(self.config.spurious_off_probability);
+        self.magnet_draw = Some(self.babble_magnet_draw(min_remaining == 0));
         let targets = self.random_near(q, self.config.babble_sigma, false);
         if switch_on {
             self.phase = Phase::Approach { steps: 0 };
+            if !self.config.move_while_switching {
+                // Given the switch-on, the arm holds still.
+                self.joint_draw = JointDraw::Scripted;
+            }
             return Command {
                 joint_targets: if self.config.move_while_switching {
                     targets

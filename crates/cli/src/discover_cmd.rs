@@ -158,15 +158,7 @@ pub(crate) fn print_verdicts(claims: &EdgeClaims, test: &DataTest) {
         "{} data test on {} of {} transitions in {:.2} s ({})",
         claims.method, test.rows, test.data_rows, test.seconds, claims.rule
     );
-    for (a, action) in claims.action_names.iter().enumerate() {
-        let driven: Vec<&str> = (0..claims.state_names.len())
-            .filter(|&k| claims.drives[a][k])
-            .map(|k| claims.state_names[k].as_str())
-            .collect();
-        println!("{action:<6} drives {}", driven.join(", "));
-    }
-    let (drives, does_not, undecided) = claims.verdict_counts();
-    println!("verdicts: {drives} drives, {does_not} does not, {undecided} undecided");
+    print!("{}", claims.summary());
 }
 
 fn write_json(dir: &Path, name: &str, value: &impl serde::Serialize) -> anyhow::Result<()> {

@@ -213,25 +213,7 @@ fn print_relevance(request: &ExplainRequest, shap: &ShapOutcome) {
 /// truth, every claim set's scores over all states or all pairs.
 fn print_claims(request: &ExplainRequest, outcome: &Outcome) {
     if let Some(headline) = outcome.claims.iter().find(|c| c.context == "all") {
-        for (a, action) in headline.action_names.iter().enumerate() {
-            let driven: Vec<&str> = headline
-                .state_names
-                .iter()
-                .enumerate()
-                .filter(|&(k, _)| headline.drives[a][k])
-                .map(|(_, s)| s.as_str())
-                .collect();
-            println!(
-                "{action:<6} drives ({}) {}",
-                headline.method,
-                driven.join(", ")
-            );
-        }
-        let (drives, does_not, undecided) = headline.verdict_counts();
-        println!(
-            "verdicts ({}): {drives} drives, {does_not} does not, {undecided} undecided",
-            headline.method
-        );
+        print!("{}", headline.summary());
     }
     if let Some(truth) = &request.truth {
         println!(

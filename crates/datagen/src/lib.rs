@@ -17,8 +17,8 @@ use causal_arm_kinematics::ArmModel;
 use causal_arm_msgs::msg::Action;
 use causal_arm_msgs::std_msgs::msg::String as RosString;
 use causal_arm_protocol::{
-    Command, Experiment, LatchedMessages, RunPlan, Scene, SimState, StepMessages, action_message,
-    babbler_seed, bag_keys, scene_markers, sim_seed, topics,
+    Command, Drawn, Experiment, LatchedMessages, RunPlan, Scene, SimState, StepMessages,
+    action_message, babbler_seed, bag_keys, scene_markers, sim_seed, topics,
 };
 use causal_arm_sim::{SimConfig, SimError, Simulator};
 use thiserror::Error;
@@ -84,6 +84,11 @@ impl GenerateOptions {
         if self.experiment == Experiment::Exp1 {
             data.insert(bag_keys::SIGMA.to_owned(), self.exp1.sigma.to_string());
         }
+        let design = match self.experiment {
+            Experiment::Exp1 => self.exp1.design_words(),
+            Experiment::Exp2 => self.exp2_config().design_words(),
+        };
+        data.insert(bag_keys::DESIGN.to_owned(), design);
         if self.experiment == Experiment::Exp2 {
             data.insert(
                 bag_keys::MOVE_WHILE_SWITCHING.to_owned(),
@@ -99,6 +104,24 @@ impl GenerateOptions {
             );
         }
         data
+    }
+
+    /// The exp 2 babbler's settings in this run's scene: its table, cube and seed.
+    pub fn exp2_config(&self) -> Exp2Config {
+        let sim = &self.sim;
+        Exp2Config {
+            seed: babbler_seed(self.seed),
+            table_top_z: sim.table_top_z,
+            cube_size: sim.cube_size,
+            table_area: (
+                sim.table_center,
+                [
+                    sim.table_half_extents[0] - sim.cube_size,
+                    sim.table_half_extents[1] - sim.cube_size,
+                ],
+            ),
+            ..self.exp2.clone()
+        }
     }
 
     /// Defaults for `experiment` with `plan`, `seed` and `out`.
@@ -177,32 +200,21 @@ impl Babbler {
                 .map_err(GenerateError::Options)?,
             ),
             Experiment::Exp2 => Self::Exp2(
-                Exp2Babbler::new(
-                    model,
-                    Exp2Config {
-                        seed: babbler_seed(options.seed),
-                        table_top_z: options.sim.table_top_z,
-                        cube_size: options.sim.cube_size,
-                        table_area: (
-                            options.sim.table_center,
-                            [
-                                options.sim.table_half_extents[0] - options.sim.cube_size,
-                                options.sim.table_half_extents[1] - options.sim.cube_size,
-                            ],
-                        ),
-                        ..options.exp2.clone()
-                    },
-                )
-                .map_err(GenerateError::Options)?,
+                Exp2Babbler::new(model, options.exp2_config()).map_err(GenerateError::Options)?,
             ),
         })
     }
 
     /// Next command for `state`.
     pub fn next(&mut self, state: &SimState) -> Command {
+        self.next_drawn(state).command
+    }
+
+    /// Next command for `state` and how it was drawn.
+    pub fn next_drawn(&mut self, state: &SimState) -> Drawn {
         match self {
-            Self::Exp1(b) => b.next(state),
-            Self::Exp2(b) => b.next(state),
+            Self::Exp1(b) => b.next_drawn(state),
+            Self::Exp2(b) => b.next_drawn(state),
         }
     }
 
@@ -242,8 +254,8 @@ pub fn validate(options: &GenerateOptions) -> Result<(), GenerateError> {
 pub trait CommandSource {
     /// A new episode begins (called before every episode but the first).
     fn new_episode(&mut self);
-    /// The command answering `state`, step `k` of its episode.
-    fn command(&mut self, state: &SimState, k: u64) -> Result<Command, GenerateError>;
+    /// The command answering `state`, step `k` of its episode, and how it was drawn.
+    fn command(&mut self, state: &SimState, k: u64) -> Result<Drawn, GenerateError>;
 }
 
 impl CommandSource for Babbler {
@@ -251,8 +263,8 @@ impl CommandSource for Babbler {
         self.reset();
     }
 
-    fn command(&mut self, state: &SimState, _k: u64) -> Result<Command, GenerateError> {
-        Ok(self.next(state))
+    fn command(&mut self, state: &SimState, _k: u64) -> Result<Drawn, GenerateError> {
+        Ok(self.next_drawn(state))
     }
 }
 
@@ -293,9 +305,9 @@ pub fn drive_range(
             state = sim.state();
         }
         sink.state(state.stamp_ns, sim.step_messages(&state))?;
-        let command = commands.command(&state, k)?;
-        sink.action(state.stamp_ns, &action_message(&state, &command, k))?;
-        state = sim.step(&command)?;
+        let drawn = commands.command(&state, k)?;
+        sink.action(state.stamp_ns, &action_message(&state, &drawn, k))?;
+        state = sim.step(&drawn.command)?;
         done += 1;
         progress(steps.start + done, total);
     }

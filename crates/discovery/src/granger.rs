@@ -155,8 +155,10 @@ impl DataTest {
         let design = Design::build(changes, settings.terms);
         let (n, p) = design.x.shape();
         let ns = data.state_width();
-        if n < 2 * p {
-            return Ok(Self::untested(changes, data, settings, 2 * p, started));
+        // No rows leave no columns either (dependent ones are dropped).
+        if n == 0 || n < 2 * p {
+            let needed = (2 * p).max(1);
+            return Ok(Self::untested(changes, data, settings, needed, started));
         }
         let clusters = changes.clusters.as_deref().map(cluster_index);
         // Within contexts at one step only: h steps on, the scripted phases' later
@@ -224,6 +226,9 @@ impl DataTest {
     /// Why no pair was tested, when the data is too small for the design.
     fn too_few_words(&self) -> Option<String> {
         let needed = self.rows_needed?;
+        if self.rows == 0 {
+            return Some("the data has no transitions to test".to_owned());
+        }
         Some(format!(
             "the data test needs at least {needed} transitions for its design, the data has {}",
             self.rows

@@ -132,6 +132,7 @@ pub fn command_of(action: &Action) -> Result<Command, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::design::Drawn;
     use crate::messages::{action_message, step_messages};
     use crate::step::SimState;
 
@@ -172,22 +173,22 @@ mod tests {
             joint_targets: [0.2; ARM_DOF],
             magnet: Action::MAGNET_ON,
         };
-        let action = action_message(&state(), &command, 3);
+        let action = action_message(&state(), &Drawn::scripted(command.clone(), 0), 3);
         assert_eq!(command_of(&action).unwrap(), command);
     }
 
     #[test]
     fn short_nan_and_out_of_range_samples_are_named() {
-        let mut action = action_message(&state(), &keep(), 0);
+        let mut action = action_message(&state(), &Drawn::scripted(keep(), 0), 0);
         action.joint_targets.truncate(3);
         assert_eq!(
             command_of(&action).unwrap_err(),
             "joint_targets has 3 values, expected 7"
         );
-        let mut action = action_message(&state(), &keep(), 0);
+        let mut action = action_message(&state(), &Drawn::scripted(keep(), 0), 0);
         action.joint_targets[2] = f64::NAN;
         assert_eq!(command_of(&action).unwrap_err(), "joint_targets[2] is NaN");
-        let mut action = action_message(&state(), &keep(), 0);
+        let mut action = action_message(&state(), &Drawn::scripted(keep(), 0), 0);
         action.magnet = 7;
         assert!(command_of(&action).unwrap_err().contains("magnet is 7"));
         let mut js = step_messages(&state(), &["j"; 7], Vec::new()).joint_states;

@@ -15,6 +15,16 @@ pub enum Experiment {
 
 crate::choice!(Experiment, "experiment", [Experiment::Exp1 => "exp1", Experiment::Exp2 => "exp2"]);
 
+impl Experiment {
+    /// Components of its actions: the arm's joints, and the magnet in experiment 2.
+    pub const fn action_components(self) -> usize {
+        match self {
+            Self::Exp1 => crate::ARM_DOF,
+            Self::Exp2 => crate::ARM_DOF + 1,
+        }
+    }
+}
+
 /// Size presets: the dataset a run generates ([`RunPlan::for_profile`]) and the epochs the
 /// trainer gives each network; one name, so `--profile quick` means the same everywhere.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -144,6 +154,9 @@ pub mod bag_keys {
     pub const SHARD: &str = "causal_arm.shard";
     /// The seed the shard set was asked for (each shard's own is [`SEED`]).
     pub const SHARD_SET_SEED: &str = "causal_arm.shard_set_seed";
+    /// How the babbler drew its actions, in words (each action says so itself in
+    /// `Action.design`; bags written before lack both and read as the paper's design).
+    pub const DESIGN: &str = "causal_arm.design";
 }
 
 /// Seed of the simulator for a run seed (decorrelated from the babbler's).

@@ -13,6 +13,7 @@
 
 pub mod checks;
 pub mod choice;
+pub mod design;
 pub mod experiment;
 pub mod graph;
 pub mod identity;
@@ -25,6 +26,7 @@ pub mod topics;
 
 pub use checks::{WellFormed, command_of};
 pub use choice::{Choice, one_of, parse_choice};
+pub use design::{Design, Draw, Drawn, ToolRegion, design_of};
 pub use experiment::{Experiment, Profile, RunPlan, babbler_seed, bag_keys, shard_seed, sim_seed};
 pub use graph::{GraphSpec, NodeDecl, ParamDecl, ParamDefault, graph};
 pub use identity::{Gid, Origin, Quarantine, QuarantineCounts, Trusted, WriterDirectory};

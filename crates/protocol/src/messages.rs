@@ -9,15 +9,16 @@ use causal_arm_msgs::builtin_interfaces::msg::Time;
 use causal_arm_msgs::geometry_msgs::msg::{
     Point, Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3,
 };
-use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
+use causal_arm_msgs::msg::{Action, Draw as DrawMsg, MagnetState, ObjectColor};
 use causal_arm_msgs::rosgraph_msgs::msg::Clock;
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_msgs::std_msgs::msg::{ColorRGBA, Header, String as RosString};
 use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use nalgebra::Isometry3;
 
+use crate::design::Drawn;
 use crate::scene::Scene;
-use crate::step::{ARM_DOF, Command, SimState};
+use crate::step::{ARM_DOF, SimState};
 use crate::topics::{self, frames, ns_from_time, time_from_ns};
 
 /// All state messages of one step.
@@ -257,8 +258,9 @@ pub fn state_from_messages(
     })
 }
 
-/// The Action message answering `state` with `command`.
-pub fn action_message(state: &SimState, command: &Command, step_in_episode: u64) -> Action {
+/// The Action message answering `state` with `drawn`'s command, saying how it was drawn.
+pub fn action_message(state: &SimState, drawn: &Drawn, step_in_episode: u64) -> Action {
+    let command = &drawn.command;
     Action {
         header: Header {
             stamp: time_from_ns(state.stamp_ns),
@@ -274,12 +276,14 @@ pub fn action_message(state: &SimState, command: &Command, step_in_episode: u64)
             .collect(),
         joint_targets: command.joint_targets.to_vec(),
         magnet: command.magnet,
+        design: drawn.design.iter().map(DrawMsg::from).collect(),
     }
 }
 
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::step::Command;
     use nalgebra::{Translation3, UnitQuaternion};
 
     const JOINTS: [&str; ARM_DOF] = [
@@ -395,7 +399,8 @@ pub(crate) mod tests {
             joint_targets: [0.2, 0.6, -0.5, -1.0, 0.2, 0.7, 0.0],
             magnet: -1,
         };
-        let a = action_message(&state, &command, 7);
+        let a = action_message(&state, &Drawn::scripted(command.clone(), 8), 7);
+        assert_eq!(a.design.len(), 8);
         assert_eq!(a.header.stamp, time_from_ns(state.stamp_ns));
         assert_eq!((a.episode, a.step, a.magnet), (2, 7, -1));
         assert_eq!(a.joint_targets, command.joint_targets);

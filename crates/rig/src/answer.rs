@@ -10,7 +10,7 @@ use anyhow::bail;
 use causal_arm_msgs::msg::Action;
 use causal_arm_node::{RosNode, qos};
 use causal_arm_protocol::{
-    Command, SimState, StepJoiner, action_message, state_from_messages, topics,
+    Drawn, SimState, StepJoiner, action_message, state_from_messages, topics,
 };
 
 use crate::RunSetup;
@@ -59,7 +59,8 @@ pub struct StepPlace {
     pub in_episode: u64,
 }
 
-/// Answers every state of `run` from step `start` on with `choose`'s command, until the
+/// Answers every state of `run` from step `start` on with `choose`'s command (and how it
+/// was drawn), until the
 /// run's last step or `stop`; returns how many steps were answered in all. `node` takes
 /// its `wait_for_recorder` and `timeout` parameters from its graph-file declaration;
 /// `who` names it in the closing log line ("babbler answered 500 of 500 steps; …").
@@ -72,7 +73,7 @@ pub fn answer_states(
     peers: &Peers,
     start: u64,
     stop: &AtomicBool,
-    mut choose: impl FnMut(&SimState, StepPlace) -> anyhow::Result<Command>,
+    mut choose: impl FnMut(&SimState, StepPlace) -> anyhow::Result<Drawn>,
 ) -> anyhow::Result<u64> {
     let timeout = peers.timeout;
     let recorded = qos::recorded();
@@ -138,9 +139,9 @@ pub fn answer_states(
                 place.step,
                 place.episode,
             )?;
-            let command = choose(&state, place)?;
+            let drawn = choose(&state, place)?;
             actions
-                .publish(action_message(&state, &command, place.in_episode))
+                .publish(action_message(&state, &drawn, place.in_episode))
                 .map_err(anyhow::Error::msg)?;
             answered += 1;
         }

@@ -39,7 +39,7 @@ pub fn run_composed(ros_args: &RosArgs, port: Option<IntraPort<'_>>) -> anyhow::
             if place.in_episode == 0 && place.step > 0 {
                 babbler.reset();
             }
-            Ok(babbler.next(state))
+            Ok(babbler.next_drawn(state))
         },
     )?;
     Ok(())

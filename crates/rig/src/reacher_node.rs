@@ -27,7 +27,7 @@ use causal_arm_msgs::srv::{
 use causal_arm_node::params::{ReacherParams, RunParams};
 use causal_arm_node::runtime::block_on_timeout;
 use causal_arm_node::{RosArgs, RosNode};
-use causal_arm_protocol::Experiment;
+use causal_arm_protocol::{Drawn, Experiment};
 use ros2_client::Client;
 
 use crate::answer::answer_states;
@@ -82,6 +82,7 @@ fn reach(
     let sigma = run.options.exp1.sigma;
     let mut controller = controller(node, own, (&model, layout, sigma), stop)?;
     let mut episodes: Vec<Episode> = Vec::with_capacity(targets.len());
+    let components = experiment.action_components();
     answer_states(
         "reacher",
         (node, None),
@@ -103,10 +104,11 @@ fn reach(
             // The last state of an episode gets no command of the controller: its action's
             // outcome would be the next episode's reset.
             let last = place.in_episode + 1 == plan.steps_per_episode;
-            Ok(match episode.reached() || last {
+            let command = match episode.reached() || last {
                 true => hold(state),
                 false => controller.command(state, target)?,
-            })
+            };
+            Ok(Drawn::scripted(command, components))
         },
     )?;
     let summary = summarize(controller.name(), &episodes);
@@ -179,7 +181,10 @@ fn place(
                 false => controller.command(state, spot)?,
             };
             magnet = command.magnet;
-            Ok(command)
+            Ok(Drawn::scripted(
+                command,
+                Experiment::Exp2.action_components(),
+            ))
         },
     )?;
     let summary = summarize_place(&trials);

@@ -23,7 +23,7 @@ use causal_arm_msgs::tf2_msgs::msg::TFMessage;
 use causal_arm_msgs::visualization_msgs::msg::MarkerArray;
 use causal_arm_node::{RosArgs, RosNode, qos};
 use causal_arm_protocol::{
-    Command, LatchedMessages, QuarantineCounts, Scene, SimState, StepMessages, command_of,
+    Command, Drawn, LatchedMessages, QuarantineCounts, Scene, SimState, StepMessages, command_of,
     markers_key, ns_from_time, scene_markers, topics,
 };
 
@@ -420,8 +420,13 @@ impl CommandSource for DdsCommands {
     /// The babbler node starts its new episode itself, from the step count.
     fn new_episode(&mut self) {}
 
-    fn command(&mut self, state: &SimState, _k: u64) -> Result<Command, GenerateError> {
-        self.answer(state.stamp_ns)
+    /// The babbler node's command; the recorder records its action as it was sent, so
+    /// its design is not needed here.
+    fn command(&mut self, state: &SimState, _k: u64) -> Result<Drawn, GenerateError> {
+        Ok(Drawn {
+            command: self.answer(state.stamp_ns)?,
+            design: Vec::new(),
+        })
     }
 }
 

@@ -10,6 +10,7 @@
 #![warn(missing_docs)]
 
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 /// Counts and rates of one comparison. Rates are `None` where undefined (no claims for
 /// precision, no true edges for recall, one class missing for AUROC and AP).
@@ -243,6 +244,47 @@ impl EdgeClaims {
             }
         }
         counts
+    }
+
+    /// The verdicts for a terminal: per action what it drives, the counts, and the
+    /// commonest reasons for "undecided" (their first clause, with how many edges), so a
+    /// user sees why nothing was claimed.
+    pub fn summary(&self) -> String {
+        let mut out = String::new();
+        for (a, action) in self.action_names.iter().enumerate() {
+            let driven: Vec<&str> = (0..self.state_names.len())
+                .filter(|&k| self.drives[a][k])
+                .map(|k| self.state_names[k].as_str())
+                .collect();
+            let driven = match driven.is_empty() {
+                true => "nothing".to_owned(),
+                false => driven.join(", "),
+            };
+            out += &format!("{action:<6} drives ({}) {driven}\n", self.method);
+        }
+        let (drives, does_not, undecided) = self.verdict_counts();
+        out += &format!(
+            "verdicts ({}): {drives} drives, {does_not} does not, {undecided} undecided\n",
+            self.method
+        );
+        for (reason, count) in self.undecided_reasons().into_iter().take(3) {
+            out += &format!("  undecided ({count}): {reason}\n");
+        }
+        out
+    }
+
+    /// The reasons for "undecided", by their first clause, commonest first.
+    pub fn undecided_reasons(&self) -> Vec<(String, usize)> {
+        let mut counts: BTreeMap<String, usize> = BTreeMap::new();
+        for row in self.decisions.iter().flatten() {
+            for d in row.iter().filter(|d| d.verdict == Verdict::Undecided) {
+                let clause = d.reason.split([';', '(']).next().unwrap_or_default();
+                *counts.entry(clause.trim().to_owned()).or_default() += 1;
+            }
+        }
+        let mut reasons: Vec<(String, usize)> = counts.into_iter().collect();
+        reasons.sort_by(|a, b| b.1.cmp(&a.1));
+        reasons
     }
 
     /// Whether `action` drives `state` (false for unknown names).

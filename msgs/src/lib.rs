@@ -50,6 +50,10 @@ pub trait RosMessage:
     /// REP-2011 hash of the type's description (`RIHS01_<64 hex>`), computed from the
     /// `.msg` at build time, as Iron-and-later endpoints and bags carry it.
     const TYPE_HASH: &'static str;
+    /// Unbounded arrays appended at the end of the type after it was first published
+    /// (the `.msg` marks the first with a comment starting "Appended"): a sample of the
+    /// layout before them is still read ([`from_cdr`]), with them empty.
+    const APPENDED_SEQUENCES: usize = 0;
     /// DDS type name as rmw uses it, e.g. `sensor_msgs::msg::dds_::JointState_`.
     fn dds_type_name() -> String;
     /// Schema text as rosbag2 writes it into MCAP (`ros2msg` encoding): the definition,
@@ -155,12 +159,13 @@ pub fn from_cdr<M: RosMessage>(bytes: &[u8]) -> Result<M, CdrError> {
     }
     let header = [bytes[0], bytes[1], bytes[2], bytes[3]];
     let body = &bytes[4..];
-    let decoded = match header {
-        [0, 1, _, _] => cdr_encoding::from_bytes::<M, LittleEndian>(body),
-        [0, 0, _, _] => cdr_encoding::from_bytes::<M, BigEndian>(body),
-        _ => return Err(CdrError::Encapsulation { ros_type, header }),
+    let (msg, used) = match decode_body::<M>(header, body)? {
+        Ok(decoded) => decoded,
+        Err(source) => match read_before_appended::<M>(header, body)? {
+            Some(decoded) => decoded,
+            None => return Err(CdrError::Codec { ros_type, source }),
+        },
     };
-    let (msg, used) = decoded.map_err(|source| CdrError::Codec { ros_type, source })?;
     // Writers may pad the end to a multiple of 4; anything more is a type mismatch.
     let extra = body.len().saturating_sub(used);
     if extra >= 4 {
@@ -169,6 +174,44 @@ pub fn from_cdr<M: RosMessage>(bytes: &[u8]) -> Result<M, CdrError> {
     msg.validate()
         .map_err(|reason| CdrError::Invalid { ros_type, reason })?;
     Ok(msg)
+}
+
+/// A sample of `M`'s layout before its last k appended sequences (k = 1 ..=
+/// `M::APPENDED_SEQUENCES`): read with those sequences empty, but only where the sample
+/// ends exactly where they would begin (up to its padding), so a truncated sample is still
+/// an error.
+fn read_before_appended<M: RosMessage>(
+    header: [u8; 4],
+    body: &[u8],
+) -> Result<Option<(M, usize)>, CdrError> {
+    // Each missing sequence reads as a length of 0, after the padding to 4 bytes.
+    let padding = (4 - body.len() % 4) % 4;
+    for k in 1..=M::APPENDED_SEQUENCES {
+        let mut padded = body.to_vec();
+        padded.extend(std::iter::repeat_n(0, padding + 4 * k));
+        if let Ok((msg, used)) = decode_body::<M>(header, &padded)?
+            && used == padded.len()
+        {
+            return Ok(Some((msg, body.len())));
+        }
+    }
+    Ok(None)
+}
+
+/// The body's message by the encapsulation `header`'s byte order: an unknown
+/// encapsulation is the outer error, a body that does not decode the inner one.
+fn decode_body<M: RosMessage>(
+    header: [u8; 4],
+    body: &[u8],
+) -> Result<cdr_encoding::Result<(M, usize)>, CdrError> {
+    match header {
+        [0, 1, _, _] => Ok(cdr_encoding::from_bytes::<M, LittleEndian>(body)),
+        [0, 0, _, _] => Ok(cdr_encoding::from_bytes::<M, BigEndian>(body)),
+        _ => Err(CdrError::Encapsulation {
+            ros_type: M::ROS_TYPE,
+            header,
+        }),
+    }
 }
 
 /// Something generic over a message type, run by [`visit_message_type`] for a type

@@ -285,3 +285,40 @@ fn ros2_client_marker_is_implied() {
     }
     generic::<crate::msg::Action>();
 }
+
+/// A sample written before `Action.design` was appended (a bag of an earlier release) is
+/// read with the design empty, with or without its writer's end padding; a sample cut
+/// inside its old fields is still an error.
+#[test]
+fn a_sample_of_the_layout_before_an_appended_field_still_reads() {
+    use crate::msg::{Action, Draw};
+    assert_eq!(Action::APPENDED_SEQUENCES, 1);
+    assert_eq!(crate::msg::Relevance::APPENDED_SEQUENCES, 3);
+    assert_eq!(JointState::APPENDED_SEQUENCES, 0);
+    let old = Action {
+        step: 3,
+        joint_deltas: vec![0.1; 7],
+        joint_targets: vec![0.2; 7],
+        magnet: 1,
+        ..Default::default()
+    };
+    let bytes = to_cdr(&old).unwrap();
+    // The design's length was the last 4 bytes; before it, the padding after `magnet`.
+    let padded = &bytes[..bytes.len() - 4];
+    let unpadded = &bytes[..bytes.len() - 7];
+    assert_eq!(unpadded.last(), Some(&1u8), "ends with the magnet");
+    for layout in [padded, unpadded] {
+        assert_eq!(from_cdr::<Action>(layout).unwrap(), old);
+    }
+    let cut = &bytes[..bytes.len() - 20];
+    assert!(from_cdr::<Action>(cut).is_err(), "a cut sample still fails");
+    let new = Action {
+        design: vec![Draw {
+            family: Draw::NORMAL,
+            scale: 0.35,
+            ..Default::default()
+        }],
+        ..old
+    };
+    assert_eq!(from_cdr::<Action>(&to_cdr(&new).unwrap()).unwrap(), new);
+}

@@ -60,6 +60,7 @@ pub fn run(args: &DiscoverArgs) -> anyhow::Result<()> {
     let cache = Cache::new(args.cache.clone().unwrap_or_else(Cache::default_dir));
     let action = ActionSource::given_or_of_bags(args.action, &args.bags)?;
     let (data, _) = load_bags(&args.bags, None, action, Some(&cache))?;
+    println!("{}", data.design_summary());
     if let Some(truth) = &truth {
         let names = causal_arm_dataset::action_names(data.experiment);
         check_names(

@@ -7,7 +7,7 @@ use causal_arm_msgs::geometry_msgs::msg::PoseStamped;
 use causal_arm_msgs::msg::{Action, MagnetState, ObjectColor};
 use causal_arm_msgs::sensor_msgs::msg::JointState;
 use causal_arm_protocol::{
-    StepJoiner, StepMessages, StepParts, bag_keys, fill, ns_from_time, topics,
+    Draw, StepJoiner, StepMessages, StepParts, bag_keys, design_of, fill, ns_from_time, topics,
 };
 use nalgebra::{Quaternion, UnitQuaternion};
 
@@ -33,8 +33,8 @@ causal_arm_protocol::step_parts! {
         colour: [f32; 3] = topics::OBJECT_COLOR,
         /// (on, holding).
         magnet: (bool, bool) = topics::MAGNET_STATE,
-        /// (episode, step, commanded deltas, magnet command).
-        action: (u32, u32, [f64; 7], i8) = topics::ACTION,
+        /// (episode, step, commanded deltas, magnet command, randomized components).
+        action: (u32, u32, [f64; 7], i8, Option<u32>) = topics::ACTION,
     }
 }
 
@@ -54,6 +54,8 @@ struct Step {
     step: u32,
     commanded: [f64; 7],
     magnet_command: i8,
+    /// Which components the design drew at random (bit j), if the action says.
+    randomized: Option<u32>,
 }
 
 /// The state-bearing values of one simulator step, as the bag's messages carry them.
@@ -190,7 +192,9 @@ impl StepReader<'_> {
                 let stamp = ns_from_time(&m.header.stamp);
                 let deltas = seven(&m.joint_deltas, "/babbler/action joint_deltas", stamp)
                     .map_err(|e| self.content(e))?;
-                let action = (m.episode, m.step, deltas, m.magnet);
+                let randomized = randomized_components(&m)
+                    .map_err(|e| self.content(format!("{topic} at {stamp} ns: {e}")))?;
+                let action = (m.episode, m.step, deltas, m.magnet, randomized);
                 (stamp, Box::new(move |p| fill(&mut p.action, action)))
             }
         };
@@ -207,7 +211,7 @@ impl StepReader<'_> {
 impl Step {
     /// The step of a complete `Partial`.
     fn from_parts(stamp: u64, p: Partial) -> Self {
-        let (episode, step, commanded, magnet_command) = p.action.expect("complete");
+        let (episode, step, commanded, magnet_command, randomized) = p.action.expect("complete");
         let (magnet_on, holding) = p.magnet.expect("complete");
         Self {
             stamp,
@@ -223,8 +227,31 @@ impl Step {
             step,
             commanded,
             magnet_command,
+            randomized,
         }
     }
+}
+
+/// Which components of an action its design drew at random (bit j: component j), `None`
+/// when it records no design; a malformed design is an error.
+fn randomized_components(action: &Action) -> Result<Option<u32>, String> {
+    let components = action.joint_deltas.len() + 1;
+    let design = match design_of(&action.design, action.design.len().max(1)) {
+        Ok(Some(design)) if design.len() <= components && design.len() < 32 => design,
+        Ok(Some(design)) => {
+            return Err(format!(
+                "design has {} draws for an action of {components} components at most",
+                design.len()
+            ));
+        }
+        Ok(None) => return Ok(None),
+        Err(e) => return Err(e),
+    };
+    Ok(Some(
+        (design.iter().enumerate())
+            .filter(|(_, d)| !matches!(d, Draw::Scripted))
+            .fold(0, |mask, (j, _)| mask | (1 << j)),
+    ))
 }
 
 /// The experiment a bag holds: from the run's own record, else from its actions (exp 2
@@ -462,12 +489,16 @@ pub fn from_bag(
     data.holding.reserve(all.len());
     data.steps.reserve(all.len());
     data.stamps_ns.reserve(all.len());
+    let mut randomized = Vec::with_capacity(all.len());
     for pair in all.windows(2) {
         let (now, next) = (&pair[0], &pair[1]);
         if is_transition(bag, now, next, period)? {
             push_transition(&mut data, now, next, action_source);
+            randomized.push(now.randomized);
         }
     }
+    // Known only where every action says.
+    data.randomized = randomized.into_iter().collect();
     data.sources.push(BagSource {
         path: bag.display().to_string(),
         blake3: hash_bag(&reader)?,

@@ -10,7 +10,7 @@ use crate::build::hash_bag;
 use crate::{ActionSource, BagSource, Dataset, DatasetError, Experiment, from_bag};
 
 /// Bumped whenever the data model or the file layout changes, so old files are rebuilt.
-const FORMAT: &str = "causal_arm.dataset.v2";
+const FORMAT: &str = "causal_arm.dataset.v3";
 
 /// Whether a bag's dataset came from the cache.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -142,7 +142,8 @@ fn cache_err(path: &Path, problem: impl std::fmt::Display) -> DatasetError {
 }
 
 /// Writes `data` as a safetensors file in the cache's layout (`states`, `actions`,
-/// `next_states`, `episodes`, `holding`, `steps`, `stamps_ns`; the experiment in the
+/// `next_states`, `episodes`, `holding`, `steps`, `stamps_ns`, and `randomized` where the
+/// bags record their design; the experiment in the
 /// metadata), for tools outside the project (numpy, the causal-discovery anchors).
 /// Atomic: a reader sees the whole file or none.
 pub fn write_safetensors(data: &Dataset, path: &Path) -> Result<(), DatasetError> {
@@ -165,7 +166,7 @@ fn write(data: &Dataset, path: &Path) -> Result<(), DatasetError> {
     ) -> Result<TensorView<'a>, DatasetError> {
         TensorView::new(dtype, shape, bytes).map_err(|e| cache_err(path, e))
     }
-    let tensors = vec![
+    let mut tensors = vec![
         (
             "actions",
             view(
@@ -222,6 +223,10 @@ fn write(data: &Dataset, path: &Path) -> Result<(), DatasetError> {
             )?,
         ),
     ];
+    if let Some(randomized) = &data.randomized {
+        let bytes = bytemuck::cast_slice(randomized);
+        tensors.push(("randomized", view(Dtype::U32, vec![rows], bytes, path)?));
+    }
     let metadata = HashMap::from([
         ("format".to_owned(), FORMAT.to_owned()),
         ("experiment".to_owned(), data.experiment.to_string()),
@@ -279,6 +284,10 @@ fn read(path: &Path) -> Result<Dataset, DatasetError> {
         holding: get(&tensors, "holding", Dtype::U8, path)?,
         steps: get(&tensors, "steps", Dtype::U32, path)?,
         stamps_ns: get(&tensors, "stamps_ns", Dtype::U64, path)?,
+        randomized: match tensors.names().contains(&"randomized") {
+            true => Some(get(&tensors, "randomized", Dtype::U32, path)?),
+            false => None,
+        },
         sources: Vec::new(),
     };
     let rows = data.rows();
@@ -288,6 +297,7 @@ fn read(path: &Path) -> Result<Dataset, DatasetError> {
         || data.steps.len() != rows
         || data.holding.len() != rows
         || data.stamps_ns.len() != rows
+        || data.randomized.as_ref().is_some_and(|r| r.len() != rows)
     {
         return Err(cache_err(path, "tensor shapes disagree"));
     }

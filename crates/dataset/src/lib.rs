@@ -104,6 +104,10 @@ pub struct Dataset {
     pub steps: Vec<u32>,
     /// Sim-time stamp of s(t), ns.
     pub stamps_ns: Vec<u64>,
+    /// Per row, which actions the babbler's design drew at random in s(t) (bit j: action
+    /// j; the rest were scripted, so no evidence of what they cause); `None` when a bag
+    /// does not record its design (a foreign bag, or one recorded before `Action.design`).
+    pub randomized: Option<Vec<u32>>,
     /// Bags the rows came from, in row order.
     pub sources: Vec<BagSource>,
 }
@@ -122,8 +126,34 @@ impl Dataset {
             holding: Vec::new(),
             steps: Vec::new(),
             stamps_ns: Vec::new(),
+            randomized: None,
             sources: Vec::new(),
         }
+    }
+
+    /// What the bags say of how their actions were drawn, in a line: per action the share
+    /// of rows where the design drew it at random, or that no design is recorded.
+    pub fn design_summary(&self) -> String {
+        let Some(randomized) = &self.randomized else {
+            return "design: not recorded in the bags (foreign, or recorded before Action.design); every row is taken as randomized".to_owned();
+        };
+        let rows = randomized.len().max(1) as f64;
+        let shares: Vec<String> = (features::action_names(self.experiment).iter().enumerate())
+            .map(|(a, name)| {
+                let drawn = randomized.iter().filter(|m| *m & (1 << a) != 0).count();
+                format!("{name} {:.1} %", 100.0 * drawn as f64 / rows)
+            })
+            .collect();
+        format!(
+            "design: recorded; rows where each action was drawn at random (else scripted): {}",
+            shares.join(", ")
+        )
+    }
+
+    /// Whether the design drew action `a` at random in row `r`: `None` when the design is
+    /// not recorded.
+    pub fn randomized(&self, r: usize, a: usize) -> Option<bool> {
+        Some(self.randomized.as_ref()?[r] & (1 << a) != 0)
     }
 
     /// Number of transitions.
@@ -242,6 +272,14 @@ impl Dataset {
         self.holding.extend(other.holding);
         self.steps.extend(other.steps);
         self.stamps_ns.extend(other.stamps_ns);
+        // The design is known only where every bag records it.
+        self.randomized = match (self.randomized.take(), other.randomized) {
+            (Some(mut ours), Some(theirs)) => {
+                ours.extend(theirs);
+                Some(ours)
+            }
+            _ => None,
+        };
         self.sources.extend(other.sources);
         Ok(())
     }

@@ -170,7 +170,17 @@ fn cache_returns_the_same_dataset_and_multiple_bags_concatenate() {
         .load_or_build(&a, Some(Experiment::Exp1), ActionSource::Realized)
         .unwrap();
     assert_eq!(outcome, CacheOutcome::Hit);
-    assert_eq!(first, second);
+    assert_eq!(first, second, "the design too survives the cache");
+    let randomized = first
+        .randomized
+        .as_ref()
+        .expect("the bag records its design");
+    assert_eq!(randomized.len(), 119);
+    assert!(
+        randomized.iter().all(|&m| m == 0b111_1111),
+        "exp1 draws every joint"
+    );
+    assert_eq!(first.randomized(0, 6), Some(true));
     let (both, outcomes) = load_bags(
         &[a.clone(), b],
         Some(Experiment::Exp1),
@@ -265,4 +275,34 @@ fn the_default_action_follows_the_arm_the_bag_was_recorded_with() {
         "{mixed}"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A bag recorded before `Action.design` existed (the fuzz corpus holds two) still reads,
+/// as a bag whose design is not recorded; with a bag that records one, the design of the
+/// whole is unknown.
+#[test]
+fn a_bag_without_a_recorded_design_reads_and_says_so() {
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/corpus/bag/exp1s.mcap");
+    let old = from_bag(&corpus, Some(Experiment::Exp1), ActionSource::Realized).unwrap();
+    assert!(old.rows() > 0);
+    assert_eq!(old.randomized, None);
+    assert_eq!(old.randomized(0, 0), None);
+    assert!(
+        old.design_summary().contains("not recorded"),
+        "{}",
+        old.design_summary()
+    );
+    let dir = tempdir("design");
+    let new = bag(&dir, Experiment::Exp1, 1, 50);
+    let (both, _) = load_bags(
+        &[new, corpus],
+        Some(Experiment::Exp1),
+        ActionSource::Realized,
+        None,
+    )
+    .unwrap();
+    assert_eq!(
+        both.randomized, None,
+        "known only where every bag records it"
+    );
 }

@@ -283,7 +283,7 @@ impl EdgeClaims {
             }
         }
         let mut reasons: Vec<(String, usize)> = counts.into_iter().collect();
-        reasons.sort_by(|a, b| b.1.cmp(&a.1));
+        reasons.sort_by_key(|r| std::cmp::Reverse(r.1));
         reasons
     }
 

@@ -185,6 +185,10 @@ impl Registry<'_> {
             "    const TYPE_HASH: &'static str = {:?};",
             self.type_hashes[&ros_type]
         );
+        let appended = appended_sequences(fields);
+        if appended > 0 {
+            let _ = writeln!(out, "    const APPENDED_SEQUENCES: usize = {appended};");
+        }
         let _ = writeln!(
             out,
             "    fn dds_type_name() -> ::std::string::String {{\n        ::std::string::String::from({:?})\n    }}",
@@ -258,5 +262,23 @@ impl Registry<'_> {
             format!("{pkg}::srv::dds_::{name}_Response_")
         );
         out.push_str("}\n\n");
+    }
+}
+
+/// The trailing fields appended to a message in its latest change: from the last field
+/// whose comment starts with "Appended" to the end, when all are unbounded arrays (a
+/// layout before them ends where they begin, and they read as empty); else none.
+pub(crate) fn appended_sequences(fields: &[Field]) -> usize {
+    let Some(first) = fields.iter().rposition(|f| {
+        f.doc
+            .first()
+            .is_some_and(|line| line.trim_start().starts_with("Appended"))
+    }) else {
+        return 0;
+    };
+    let appended = &fields[first..];
+    match appended.iter().all(|f| f.ty.array == ArrayKind::Unbounded) {
+        true => appended.len(),
+        false => 0,
     }
 }

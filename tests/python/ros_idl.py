@@ -327,14 +327,32 @@ class ServiceClient:
 
 
 @dataclass
+class Draw(IdlStruct, typename="causal_arm_msgs::msg::dds_::Draw_"):
+    """causal_arm_msgs/msg/Draw, written from msgs/msg/Draw.msg."""
+    family: t.uint8 = 0
+    center: t.float64 = 0.0
+    scale: t.float64 = 0.0
+    lower: t.float64 = 0.0
+    upper: t.float64 = 0.0
+    values: t.sequence[t.float64] = field(default_factory=list)
+    probabilities: t.sequence[t.float64] = field(default_factory=list)
+    tries: t.uint32 = 0
+    min_tool_z: t.float64 = 0.0
+    tool_area: t.sequence[t.float64] = field(default_factory=list)
+
+
+@dataclass
 class Action(IdlStruct, typename="causal_arm_msgs::msg::dds_::Action_"):
-    """causal_arm_msgs/msg/Action, written from msgs/msg/Action.msg."""
+    """causal_arm_msgs/msg/Action, written from msgs/msg/Action.msg (a publisher of the
+    layout before `design` was appended is not read over DDS, as ROS 2 itself matches types
+    by their definition)."""
     header: Header = field(default_factory=Header)
     episode: t.uint32 = 0
     step: t.uint32 = 0
     joint_deltas: t.sequence[t.float64] = field(default_factory=list)
     joint_targets: t.sequence[t.float64] = field(default_factory=list)
     magnet: t.int8 = 0
+    design: t.sequence[Draw] = field(default_factory=list)
 
 
 @dataclass

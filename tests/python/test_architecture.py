@@ -157,3 +157,21 @@ def test_no_source_file_over_600_lines_and_no_function_over_100():
             if end - i + 1 > 100:
                 long_functions.append(f"{where}:{i + 1}: {end - i + 1} lines")
     assert not long_files and not long_functions, long_files + long_functions
+
+
+@pytest.mark.parametrize("message,ok", [
+    ("dataset: read each row's design\n\nThe detail.\n", True),
+    ("a subject alone\n", True),
+    ("# git's template\nfix the hang\n\nbody\n", True),
+    ("x" * 73 + "\n", False),
+    ("a subject\nno blank line\n", False),
+    ("\n\nbody only\n", False),
+])
+def test_the_commit_msg_hook_keeps_subjects_short(tmp_path, message, ok):
+    """The README's hook (.githooks/commit-msg): subjects of at most 72 characters, the
+    detail in the body after a blank line."""
+    path = tmp_path / "COMMIT_EDITMSG"
+    path.write_text(message)
+    r = subprocess.run([str(REPO / ".githooks" / "commit-msg"), str(path)], capture_output=True, text=True)
+    assert (r.returncode == 0) == ok, r.stderr
+    assert ok or r.stderr.startswith("commit-msg: ")

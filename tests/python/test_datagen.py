@@ -644,3 +644,14 @@ def test_sigkill_leaves_a_readable_prefix(causal_arm_bin, run_cli, tmp_path):
         assert sum(1 for _ in reader.messages()) == report["recovered_messages"]
     r = run_cli("bag", "check", tmp_path / "finished")
     assert r.returncode == 0, r.stdout[-800:] + r.stderr[-800:]
+
+
+@pytest.mark.parametrize("distro,recorded", [("kilted", "kilted"), ("", "jazzy"), ("no such/distro", "jazzy")])
+def test_the_bag_names_the_ros_distro_of_its_environment(run_cli, tmp_path, distro, recorded):
+    import yaml
+
+    out = tmp_path / "bag"
+    r = run_cli("generate", "exp1", "--steps", "20", "--out", out, env={"ROS_DISTRO": distro})
+    assert r.returncode == 0, r.stderr
+    info = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["ros_distro"] == recorded

@@ -215,3 +215,12 @@ pub(crate) struct FileInformation {
     pub(crate) duration: Nanoseconds,
     pub(crate) message_count: u64,
 }
+
+/// The ROS distribution a bag says it was written under, as rosbag2 reads it: the
+/// environment's `ROS_DISTRO` (a plain name), else jazzy, the one our interfaces follow.
+pub(crate) fn ros_distro() -> String {
+    std::env::var("ROS_DISTRO")
+        .ok()
+        .filter(|d| !d.is_empty() && d.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'))
+        .unwrap_or_else(|| "jazzy".to_owned())
+}

@@ -581,7 +581,7 @@ impl BagWriter {
                 })
                 .collect(),
             custom_data: self.custom_data.clone(),
-            ros_distro: "jazzy".to_owned(),
+            ros_distro: crate::metadata::ros_distro(),
         };
         crate::metadata::write(&self.dir, info)
     }

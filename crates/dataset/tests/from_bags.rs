@@ -37,6 +37,12 @@ fn bag(dir: &Path, experiment: Experiment, episodes: u64, steps: u64) -> PathBuf
 
 /// Copies the step topics of `src` into a new bag, leaving out messages `skip` selects.
 fn copy_without(src: &Path, dst: &Path, skip: impl Fn(&RawMessage, usize) -> bool) {
+    copy_edited(src, dst, |raw, i| (!skip(raw, i)).then(|| raw.data.clone()));
+}
+
+/// Copies the step topics of `src` into a new bag, each message as `edit` gives its CDR
+/// (`None`: left out); `edit` also gets the step's index.
+fn copy_edited(src: &Path, dst: &Path, edit: impl Fn(&RawMessage, usize) -> Option<Vec<u8>>) {
     let reader = BagReader::open(src).unwrap();
     let mut writer = BagWriter::create(dst, BagOptions::default()).unwrap();
     let qos = offered_qos_yaml(true, false, true, 0);
@@ -71,9 +77,9 @@ fn copy_without(src: &Path, dst: &Path, skip: impl Fn(&RawMessage, usize) -> boo
         if raw.topic == topics::JOINT_STATES {
             index += 1;
         }
-        if !skip(&raw, index - 1) {
+        if let Some(data) = edit(&raw, index - 1) {
             writer
-                .write_cdr(&raw.topic, raw.log_time_ns, raw.publish_time_ns, &raw.data)
+                .write_cdr(&raw.topic, raw.log_time_ns, raw.publish_time_ns, &data)
                 .unwrap();
         }
     }
@@ -305,4 +311,25 @@ fn a_bag_without_a_recorded_design_reads_and_says_so() {
         both.randomized, None,
         "known only where every bag records it"
     );
+}
+
+/// A design the bag's reader cannot take (an unknown family) is an error naming the bag,
+/// the topic, the step's stamp and the component.
+#[test]
+fn a_malformed_design_is_an_error_naming_the_step_and_component() {
+    let dir = tempdir("bad-design");
+    let good = bag(&dir, Experiment::Exp1, 1, 30);
+    let bad = dir.join("bad");
+    copy_edited(&good, &bad, |raw, i| {
+        if raw.topic != topics::ACTION || i != 10 {
+            return Some(raw.data.clone());
+        }
+        let mut action: Action = causal_arm_msgs::from_cdr(&raw.data).unwrap();
+        action.design[2].family = 7;
+        Some(causal_arm_msgs::to_cdr(&action).unwrap())
+    });
+    let err = from_bag(&bad, Some(Experiment::Exp1), ActionSource::Realized).unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("/babbler/action at"), "{text}");
+    assert!(text.contains("design[2]: family 7"), "{text}");
 }

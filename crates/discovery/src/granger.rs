@@ -148,36 +148,22 @@ impl DataTest {
     }
 
     /// Runs every pair's test on `changes`, a draw of `data`'s transitions: several tests
-    /// (the data test and the anchors) share one draw.
+    /// (the data test and the anchors) share one draw. Data too small for the design (2 ×
+    /// its columns) tests no pair and says how many transitions it needs.
     pub fn on(changes: &Changes, data: &Dataset, settings: &GrangerSettings) -> Result<Self> {
         settings.check()?;
         let started = std::time::Instant::now();
         let design = Design::build(changes, settings.terms);
         let (n, p) = design.x.shape();
-        let ns = data.state_width();
+        let (na, ns) = (data.action_width(), data.state_width());
         // No rows leave no columns either (dependent ones are dropped).
-        if n == 0 || n < 2 * p {
-            let needed = (2 * p).max(1);
-            return Ok(Self::untested(changes, data, settings, needed, started));
-        }
-        let clusters = changes.clusters.as_deref().map(cluster_index);
-        // Within contexts at one step only: h steps on, the scripted phases' later
-        // commands depend on the context, which then confounds the test.
-        let intermittent = if settings.within_contexts && changes.horizon == 1 {
-            intermittent_features(changes, settings.resolution_margin)
+        let (pairs, within, intermittent, rows_needed) = if n == 0 || n < 2 * p {
+            let untested = vec![vec![PairTest::untested(0.0, n); ns]; na];
+            (untested, Vec::new(), vec![false; ns], Some((2 * p).max(1)))
         } else {
-            vec![false; ns]
+            let (pairs, within, intermittent) = fit_all(changes, data, settings, &design);
+            (pairs, within, intermittent, None)
         };
-        let (pairs, within) = rayon::join(
-            || {
-                let y = changes.delta_matrix();
-                fit_and_test(&design, &y, settings.robust, clusters.as_ref())
-            },
-            || match intermittent.contains(&true) {
-                true => tests_within_contexts(changes, data, settings, &intermittent),
-                false => Vec::new(),
-            },
-        );
         Ok(Self {
             settings: settings.clone(),
             action_names: action_names(data.experiment),
@@ -190,37 +176,9 @@ impl DataTest {
             intermittent,
             changes: (0..ns).map(|k| changes.ever_changes(k)).collect(),
             resolution: changes.resolution.clone(),
-            rows_needed: None,
+            rows_needed,
             seconds: started.elapsed().as_secs_f64(),
         })
-    }
-
-    /// The test on data too small for its design (`needed` transitions): no pair tested,
-    /// what the data shows of each feature kept.
-    fn untested(
-        changes: &Changes,
-        data: &Dataset,
-        settings: &GrangerSettings,
-        needed: usize,
-        started: std::time::Instant,
-    ) -> Self {
-        let (na, ns) = (data.action_width(), data.state_width());
-        let n = changes.rows.len();
-        Self {
-            settings: settings.clone(),
-            action_names: action_names(data.experiment),
-            state_names: state_names(data.experiment),
-            horizon: changes.horizon,
-            rows: n,
-            data_rows: data.rows(),
-            pairs: vec![vec![PairTest::untested(0.0, n); ns]; na],
-            within: Vec::new(),
-            intermittent: vec![false; ns],
-            changes: (0..ns).map(|k| changes.ever_changes(k)).collect(),
-            resolution: changes.resolution.clone(),
-            rows_needed: Some(needed),
-            seconds: started.elapsed().as_secs_f64(),
-        }
     }
 
     /// Why no pair was tested, when the data is too small for the design.
@@ -480,6 +438,35 @@ impl DataTest {
             decisions: None,
         }
     }
+}
+
+/// Every pair's test over all rows of `changes` on `design`, beside the intermittent
+/// features' tests within each context (one step on only: h steps on, the scripted
+/// phases' later commands depend on the context, which then confounds the test); and
+/// which features are intermittent.
+fn fit_all(
+    changes: &Changes,
+    data: &Dataset,
+    settings: &GrangerSettings,
+    design: &Design,
+) -> (Vec<Vec<PairTest>>, Vec<ContextTest>, Vec<bool>) {
+    let clusters = changes.clusters.as_deref().map(cluster_index);
+    let intermittent = if settings.within_contexts && changes.horizon == 1 {
+        intermittent_features(changes, settings.resolution_margin)
+    } else {
+        vec![false; data.state_width()]
+    };
+    let (pairs, within) = rayon::join(
+        || {
+            let y = changes.delta_matrix();
+            fit_and_test(design, &y, settings.robust, clusters.as_ref())
+        },
+        || match intermittent.contains(&true) {
+            true => tests_within_contexts(changes, data, settings, &intermittent),
+            false => Vec::new(),
+        },
+    );
+    (pairs, within, intermittent)
 }
 
 /// The standard anchor's two-valued claims: the classical F test of `terms`, Bonferroni at

@@ -200,16 +200,14 @@ impl Exp2Babbler {
     /// `over_table`, above the table area).
     fn random_near(&mut self, q: &[f64; ARM_DOF], sigma: f64, over_table: bool) -> [f64; ARM_DOF] {
         let normal = Normal::new(0.0, sigma.max(1e-9)).expect("positive sigma");
-        let floor = self.config.table_top_z + self.config.min_clearance;
-        for _ in 0..MOVE_TRIES {
+        // The region the design records is the one the moves are kept in.
+        let region = self.region(over_table);
+        for _ in 0..region.tries {
             let candidate: [f64; ARM_DOF] = std::array::from_fn(|i| {
                 (q[i] + normal.sample(&mut self.rng)).clamp(self.lower[i], self.upper[i])
             });
-            let ([cx, cy], [hx, hy]) = self.config.table_area;
-            let ok = self.model.ef_pose(&candidate).is_ok_and(|p| {
-                let t = p.translation;
-                t.z >= floor && (!over_table || ((t.x - cx).abs() <= hx && (t.y - cy).abs() <= hy))
-            });
+            let ok = (self.model.ef_pose(&candidate))
+                .is_ok_and(|p| region.holds(p.translation.vector.into()));
             if ok {
                 self.joint_draw = JointDraw::Near { sigma, over_table };
                 return candidate;

@@ -235,17 +235,15 @@ impl Step {
 /// Which components of an action its design drew at random (bit j: component j), `None`
 /// when it records no design; a malformed design is an error.
 fn randomized_components(action: &Action) -> Result<Option<u32>, String> {
-    let components = action.joint_deltas.len() + 1;
-    let design = match design_of(&action.design, action.design.len().max(1)) {
-        Ok(Some(design)) if design.len() <= components && design.len() < 32 => design,
-        Ok(Some(design)) => {
-            return Err(format!(
-                "design has {} draws for an action of {components} components at most",
-                design.len()
-            ));
-        }
-        Ok(None) => return Ok(None),
-        Err(e) => return Err(e),
+    // The joints, and the magnet in exp 2 (the experiment is known only once every step
+    // has been read).
+    let joints = action.joint_deltas.len();
+    let components = match action.design.len() == joints {
+        true => joints,
+        false => joints + 1,
+    };
+    let Some(design) = design_of(&action.design, components)? else {
+        return Ok(None);
     };
     Ok(Some(
         (design.iter().enumerate())
